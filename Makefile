@@ -1,0 +1,43 @@
+# Two commands on a fresh machine: `make demo` and `make test`. Both set everything up first.
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed-stamp
+
+.PHONY: setup demo test lint format bench clean
+
+setup: $(STAMP) .cache/system-gl-ok .cache/assets/teapot.obj
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e ".[dev]"
+	touch $(STAMP)
+
+# Mesa EGL/llvmpipe: installed with apt when missing and we are root, otherwise the command is printed.
+.cache/system-gl-ok: scripts/ensure-gl.sh
+	bash scripts/ensure-gl.sh $(PY)
+	mkdir -p .cache && touch $@
+
+# The Utah teapot (public-domain data) comes from the npm registry package utah-teapot.
+.cache/assets/teapot.obj: scripts/fetch-assets.sh
+	bash scripts/fetch-assets.sh .cache/assets
+
+demo: setup
+	$(VENV)/bin/prefilter compare wood-teapot -o out/wood-teapot
+	$(VENV)/bin/prefilter compare zone-plate -o out/zone-plate
+
+test: setup
+	$(VENV)/bin/ruff check src tests
+	$(VENV)/bin/ruff format --check src tests
+	$(VENV)/bin/pytest -q
+
+bench: setup
+	$(VENV)/bin/prefilter bench --json out/bench.json
+
+format: setup
+	$(VENV)/bin/ruff format src tests
+	$(VENV)/bin/ruff check --fix src tests
+
+clean:
+	rm -rf out .cache $(VENV)

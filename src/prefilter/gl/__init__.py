@@ -1,0 +1,1 @@
+"""OpenGL runtime: the context, the GLSL assembler, the renderer and the shader evaluator."""
