@@ -26,7 +26,8 @@ def gl_context() -> moderngl.Context:
             ) from exc
         if ctx.version_code < 330:
             raise PrefilterError(
-                f"OpenGL {ctx.version_code} is too old (3.3 needed) on {ctx.info['GL_RENDERER']}; {INSTALL_HINT}"
+                f"OpenGL {ctx.version_code} is too old (3.3 needed) on {ctx.info['GL_RENDERER']}; "
+                f"{INSTALL_HINT}"
             )
         _context = ctx
     return _context

@@ -30,6 +30,8 @@ def glsl_eval(
 
     `textures` maps sampler names to moderngl textures (bound to consecutive units);
     `prelude` is extra GLSL placed after the includes (helper functions, uniform declarations).
+    Uniform values given as NumPy arrays are written as raw float32 bytes (transpose matrices first:
+    GLSL is column-major).
     """
     ctx = gl_context()
     columns = {name: np.asarray(a, dtype=np.float32).reshape(len(a), -1) for name, a in inputs.items()}
@@ -53,7 +55,10 @@ def glsl_eval(
     program = build_program(ctx, source, fragment, target=target, defines=defines, varyings=("result",))
     for name, value in (uniforms or {}).items():
         if name in program:
-            program[name].value = value
+            if isinstance(value, np.ndarray):  # matrices and arrays: raw column-major float32 bytes
+                program[name].write(np.ascontiguousarray(value, dtype=np.float32).tobytes())
+            else:
+                program[name].value = value
     for unit, (name, texture) in enumerate((textures or {}).items()):
         texture.use(location=unit)
         if name in program:

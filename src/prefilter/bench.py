@@ -1,0 +1,217 @@
+"""`prefilter bench`: errors and time ratios of every mode on every preset, measured in one run.
+
+Per preset: FLIP / ΔE2000 / RMSE of each mode against the reference, the median frame time of each
+mode (at least 5 frames), the ratios mode/point and reference/filtered, and the cost of the filtered
+modes on a near and a far view. The far view keeps the camera and scales the solid texture by
+FAR_SCALE: footprints in texture space grow FAR_SCALE times on exactly the same pixels, which isolates
+"cost independent of footprint size" from the number of pixels covered.
+
+Hart et al. 1999 studies on top: coordinate precision (§4.3, Fig. 10), the reduced 100,000-gate model
+(§4.2, Fig. 11) and temporal flicker over a flight towards the horizon (§4.4).
+Targets (issue #2): best filtered FLIP <= 1/2 point FLIP; filtered time <= 1.2 x point;
+reference time >= 300 x filtered; near/far filtered time within 10 %.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from prefilter.compare import compare_scene, progress_bar
+from prefilter.gl.render import REFERENCE, Renderer, RenderOptions, composite, coverage_mask, scene_modes
+from prefilter.metrics import compare
+from prefilter.scene import Scene, preset_names, resolve_scene
+
+FAR_SCALE = 16.0
+QUANT_BITS = (6, 8, 10, 12, 16)
+STUDY_PRESETS = ("wood-teapot", "marble-teapot", "planet")
+FLIGHT_PRESET = "seascape"
+
+
+def _scaled_texture(scene: Scene, factor: float) -> Scene:
+    objects = []
+    for obj in scene.objects:
+        solid = obj.material.solid_from_object.copy()
+        solid[:3, :] *= factor
+        objects.append(replace(obj, material=replace(obj.material, solid_from_object=solid)))
+    return replace(scene, objects=objects)
+
+
+def bench_preset(scene: Scene, size, spp: int, frames: int) -> dict:
+    modes = scene_modes(scene)
+    filtered = scene.technique_modes()
+    renderer = Renderer(scene, size)
+    try:
+        result = compare_scene(
+            scene,
+            spp=spp,
+            frames=frames,
+            renderer=renderer,
+            progress=progress_bar(f"{scene.name}: reference {spp} spp"),
+        )
+    finally:
+        renderer.release()
+    metrics = result.metrics
+    point_ms = metrics["point"]["ms"]
+    ref_ms = metrics[REFERENCE]["ms"]
+    far = Renderer(_scaled_texture(scene, FAR_SCALE), size)
+    try:
+        far_ms = far.time_modes(["point", *filtered], frames)
+    finally:
+        far.release()
+    entry = {
+        "size": list(result.size),
+        "reference_spp": spp,
+        "modes": metrics,
+        "time_vs_point": {m: metrics[m]["ms"] / point_ms for m in modes},
+        "reference_vs_filtered": {m: ref_ms / metrics[m]["ms"] for m in filtered},
+        "far_vs_near": {m: far_ms[m] / metrics[m]["ms"] for m in ["point", *filtered]},
+    }
+    best = min(filtered, key=lambda m: metrics[m]["flip"])
+    entry["best_filtered"] = best
+    entry["checks"] = {
+        "flip_best_filtered_le_half_point": metrics[best]["flip"] <= 0.5 * metrics["point"]["flip"],
+        "filtered_time_le_1.2_point": all(entry["time_vs_point"][m] <= 1.2 for m in filtered),
+        "reference_ge_300_filtered": all(v >= 300 for v in entry["reference_vs_filtered"].values()),
+        "far_near_within_10pct": all(abs(entry["far_vs_near"][m] - 1) <= 0.10 for m in filtered),
+    }
+    return entry
+
+
+def quantisation_study(scene: Scene, size, spp: int) -> dict:
+    """Hart §4.3: error of point and filtered renders with solid coordinates quantised to B bits."""
+    rows = {}
+    base = Renderer(scene, size)
+    try:
+        ref = base.reference(spp)
+    finally:
+        base.release()
+    mask = coverage_mask(ref)
+    ref_rgb = composite(ref, scene.background)
+    for bits in QUANT_BITS:
+        r = Renderer(scene, size, options=RenderOptions(quant_bits=bits))
+        try:
+            rows[bits] = {
+                mode: float(compare(composite(r.render(mode), scene.background), ref_rgb, mask)["flip"])
+                for mode in ("point", "hart-sat")
+            }
+        finally:
+            r.release()
+    return rows
+
+
+def reduced_study(scene: Scene, size, spp: int, frames: int) -> dict:
+    """Hart §4.2: the reduced model (two noise terms, linear fade) against the full model's reference."""
+    full = Renderer(scene, size)
+    reduced = Renderer(scene, size, options=RenderOptions(reduced=True))
+    try:
+        ref = full.reference(spp)
+        mask = coverage_mask(ref)
+        ref_rgb = composite(ref, scene.background)
+        out = {}
+        for mode in ("point", "hart-sat"):
+            out[mode] = {
+                "flip_full": float(
+                    compare(composite(full.render(mode), scene.background), ref_rgb, mask)["flip"]
+                ),
+                "flip_reduced": float(
+                    compare(composite(reduced.render(mode), scene.background), ref_rgb, mask)["flip"]
+                ),
+                "time_reduced_vs_full": reduced.time_modes([mode], frames)[mode]
+                / full.time_modes([mode], frames)[mode],
+            }
+        return out
+    finally:
+        full.release()
+        reduced.release()
+
+
+def flicker_study(scene: Scene, size, spp: int, count: int = 12) -> dict:
+    """Hart §4.4: mean absolute frame-to-frame change over a flight towards the horizon."""
+    renderer = Renderer(scene, size)
+    try:
+        series: dict[str, list[np.ndarray]] = {"point": [], "hart-sat": [], "hart-mip": [], REFERENCE: []}
+        masks = []
+        for k in range(count):
+            t = k / (count - 1)
+            ref = renderer.reference(spp, t)
+            masks.append(coverage_mask(ref))
+            series[REFERENCE].append(composite(ref, scene.background))
+            for mode in ("point", "hart-sat", "hart-mip"):
+                series[mode].append(composite(renderer.render(mode, t), scene.background))
+    finally:
+        renderer.release()
+    out = {}
+    for mode, images in series.items():
+        changes = [
+            float(np.abs(b - a)[masks[k] & masks[k + 1]].mean())
+            for k, (a, b) in enumerate(zip(images, images[1:], strict=False))
+        ]
+        out[mode] = float(np.mean(changes))
+    return out
+
+
+def run_bench(
+    names: list[str],
+    json_path: str | None = None,
+    size=None,
+    spp: int = 1024,
+    frames: int = 7,
+    quick: bool = False,
+) -> int:
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    names = names or preset_names()
+    frames = max(5, frames)
+    if quick:
+        size, spp = size or (128, 96), min(spp, 64)
+    scenes = [resolve_scene(n) for n in names]
+    results: dict[str, dict] = {"presets": {}, "size_override": list(size) if size else None}
+    for scene in scenes:
+        results["presets"][scene.name] = bench_preset(scene, size, spp, frames)
+
+    table = Table(
+        "preset", "mode", "FLIP", "ΔE00", "ms", "×point", "ref/×", "far/near", title="prefilter bench"
+    )
+    for name, entry in results["presets"].items():
+        for mode, m in entry["modes"].items():
+            table.add_row(
+                name,
+                mode,
+                f"{m['flip']:.4f}",
+                f"{m['delta_e']:.2f}",
+                f"{m['ms']:.2f}",
+                f"{entry['time_vs_point'].get(mode, float('nan')):.2f}",
+                f"{entry['reference_vs_filtered'].get(mode, float('nan')):.0f}",
+                f"{entry['far_vs_near'].get(mode, float('nan')):.2f}",
+            )
+        checks = " ".join(f"{k}={'yes' if v else 'NO'}" for k, v in entry["checks"].items())
+        table.add_row(name, "checks", checks, "", "", "", "", "")
+    console.print(table)
+
+    studies = {}
+    study_names = [n for n in STUDY_PRESETS if n in names]
+    for name in study_names:
+        scene = resolve_scene(name)
+        studies[name] = {
+            "quantisation": quantisation_study(scene, size, spp),
+            "reduced": reduced_study(scene, size, spp, frames),
+        }
+    if FLIGHT_PRESET in names:
+        studies["flicker"] = flicker_study(resolve_scene(FLIGHT_PRESET), size, min(spp, 256))
+    results["studies"] = studies
+    if studies:
+        console.print_json(json.dumps(studies))
+    if json_path:
+        path = Path(json_path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".{path.name}.tmp")
+        tmp.write_text(json.dumps(results, indent=2) + "\n")
+        os.replace(tmp, path)
+    return 0

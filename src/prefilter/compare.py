@@ -1,0 +1,167 @@
+"""Judge a scene: render every mode and the supersampled reference in one run, score and time them.
+
+`compare_scene` returns the images, per-mode metrics on fully covered pixels (FLIP, ΔE2000, RMSE in
+linear RGB) and median GPU frame times; `write_comparison` writes the labelled strip, FLIP maps,
+report.md and report.json into a directory atomically (built beside it, then renamed into place).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from prefilter.gl.render import REFERENCE, Renderer, RenderOptions, composite, coverage_mask, scene_modes
+from prefilter.images import false_colour, labelled_strip, write_image
+from prefilter.metrics import compare
+from prefilter.scene import Scene
+
+
+@dataclass
+class Comparison:
+    scene: Scene
+    size: tuple[int, int]
+    spp: int
+    images: dict[str, np.ndarray]  # linear RGB over the background, per mode and "reference"
+    diagnostics: dict[str, np.ndarray]  # unscored visualisations (e.g. hart-width)
+    mask: np.ndarray
+    metrics: dict[str, dict[str, float]] = field(default_factory=dict)
+    flip_maps: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def report(self) -> dict:
+        return {
+            "scene": self.scene.name,
+            "size": list(self.size),
+            "reference_spp": self.spp,
+            "covered_fraction": float(self.mask.mean()),
+            "modes": self.metrics,
+        }
+
+
+def progress_bar(description: str):
+    """A rich progress callback (k, n) -> None; silent when not on a terminal."""
+    from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeRemainingColumn
+
+    progress = Progress(
+        TextColumn(description), BarColumn(), TaskProgressColumn(), TimeRemainingColumn(), transient=True
+    )
+    state: dict[str, int] = {}
+
+    def update(done: int, total: int) -> None:
+        if "task" not in state:
+            progress.start()
+            state["task"] = progress.add_task(description, total=total)
+        progress.update(state["task"], completed=done)
+        if done >= total:
+            progress.stop()
+
+    return update
+
+
+def compare_scene(
+    scene: Scene,
+    size: tuple[int, int] | None = None,
+    spp: int = 1024,
+    t: float = 0.0,
+    modes: list[str] | None = None,
+    frames: int = 5,
+    options: RenderOptions | None = None,
+    renderer: Renderer | None = None,
+    progress=None,
+    time_reference: bool = True,
+) -> Comparison:
+    own = renderer is None
+    renderer = renderer or Renderer(scene, size, options=options or RenderOptions())
+    try:
+        modes = modes or scene_modes(scene)
+        reference_rgba = renderer.reference(spp, t, progress=progress)
+        mask = coverage_mask(reference_rgba)
+        if not mask.any():
+            raise ValueError(f"{scene.name}: no pixel is fully covered by a surface; nothing to score")
+        background = scene.background
+        images = {REFERENCE: composite(reference_rgba, background)}
+        for mode in modes:
+            images[mode] = composite(renderer.render(mode, t), background)
+        diagnostics = {
+            mode: composite(renderer.render(mode, t), background)
+            for mode in scene_modes(scene, diagnostics=True)
+            if mode not in modes
+        }
+        result = Comparison(scene, renderer.size, spp, images, diagnostics, mask)
+        times = renderer.time_modes(modes, frames, t)
+        for mode in modes:
+            scores = compare(images[mode], images[REFERENCE], mask)
+            result.flip_maps[mode] = scores.pop("flip_map")
+            scores["ms"] = times[mode]
+            result.metrics[mode] = {k: float(v) for k, v in scores.items()}
+        if time_reference:
+            result.metrics[REFERENCE] = {
+                "flip": 0.0,
+                "delta_e": 0.0,
+                "rmse": 0.0,
+                "ms": renderer.time_reference(spp, t),
+            }
+        return result
+    finally:
+        if own:
+            renderer.release()
+
+
+def markdown_table(comparison: Comparison) -> str:
+    rows = ["| mode | FLIP | ΔE2000 | RMSE | ms/frame |", "|---|---:|---:|---:|---:|"]
+    for mode, m in comparison.metrics.items():
+        rows.append(f"| {mode} | {m['flip']:.4f} | {m['delta_e']:.3f} | {m['rmse']:.4f} | {m['ms']:.2f} |")
+    return "\n".join(rows)
+
+
+def write_comparison(comparison: Comparison, out_dir: str | os.PathLike) -> Path:
+    out = Path(out_dir)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        name = comparison.scene.name
+        panels = [(REFERENCE, comparison.images[REFERENCE])]
+        panels += [(mode, img) for mode, img in comparison.images.items() if mode != REFERENCE]
+        write_image(staging / "strip.png", labelled_strip(panels))
+        flips = [
+            (f"FLIP {mode} {comparison.metrics[mode]['flip']:.3f}", false_colour(m))
+            for mode, m in comparison.flip_maps.items()
+        ]
+        write_image(staging / "flip.png", labelled_strip(flips))
+        for mode, img in {**comparison.images, **comparison.diagnostics}.items():
+            write_image(staging / f"{mode}.png", img, {"scene": name, "mode": mode})
+        write_image(
+            staging / "reference.exr",
+            comparison.images[REFERENCE],
+            {"scene": name, "mode": REFERENCE, "spp": comparison.spp},
+        )
+        report = comparison.report()
+        (staging / "report.json").write_text(json.dumps(report, indent=2) + "\n")
+        md = [
+            f"# {name}",
+            "",
+            comparison.scene.description,
+            "",
+            f"{comparison.size[0]}x{comparison.size[1]} pixels, reference {comparison.spp} spp, "
+            f"{100 * report['covered_fraction']:.1f}% of pixels fully covered and scored.",
+            "",
+            markdown_table(comparison),
+            "",
+            "![modes](strip.png)",
+            "",
+            "![FLIP maps](flip.png)",
+            "",
+        ]
+        (staging / "report.md").write_text("\n".join(md))
+        if out.exists():
+            shutil.rmtree(out)
+        os.replace(staging, out)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    return out

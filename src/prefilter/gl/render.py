@@ -1,0 +1,306 @@
+"""Draw a scene in a mode: float32 render targets, multi-pass reference accumulation, GPU timings.
+
+Modes (DESIGN.md "Judge"): `point` (one sample at the pixel centre, unfiltered), `naive` (today's
+renderers), each material's filtered modes, diagnostic modes, and `reference`: N x N stratified,
+jittered sub-pixel offsets of the projection, each pass the exact unfiltered (`point`) appearance,
+accumulated on the GPU. The pixel filter is the box over one pixel everywhere.
+
+Images are premultiplied RGBA, linear, top row first; alpha is coverage by the scene's surfaces and
+`composite` puts them over the background. Pixels whose reference alpha is 1 are fully covered.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import moderngl
+import numpy as np
+
+from prefilter import PrefilterError
+from prefilter.geometry import Mesh, load_mesh, make_primitive
+from prefilter.gl.context import gl_context
+from prefilter.gl.program import build_program
+from prefilter.scene import Light, Scene, SceneObject
+
+BASE_MODES = ("point", "naive")
+REFERENCE = "reference"
+
+_ACCUMULATE_VERT = """
+void main() {
+    vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
+    gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+}
+"""
+_ACCUMULATE_FRAG = """
+uniform sampler2D u_pass;
+out vec4 o_colour;
+void main() { o_colour = texelFetch(u_pass, ivec2(gl_FragCoord.xy), 0); }
+"""
+
+
+@dataclass(frozen=True)
+class RenderOptions:
+    quant_bits: int | None = None  # Hart §4.3: solid coordinates quantised to this many bits
+    reduced: bool = False  # Hart §4.2: the "100,000-gate" variant
+
+
+def mode_define(mode: str) -> str:
+    return "MODE_" + mode.upper().replace("-", "_")
+
+
+def scene_modes(scene: Scene, diagnostics: bool = False) -> list[str]:
+    """Every mode the scene renders in, scored ones first; `reference` is not included."""
+    modes = list(BASE_MODES) + scene.technique_modes()
+    if diagnostics:
+        for obj in scene.objects:
+            modes += [m for m in obj.material.diagnostic_modes() if m not in modes]
+    return modes
+
+
+def build_mesh(obj: SceneObject) -> Mesh:
+    if obj.shape == "mesh":
+        return load_mesh(obj.mesh_path)
+    try:
+        return make_primitive(obj.shape, **obj.shape_params)
+    except PrefilterError as exc:
+        raise PrefilterError(f"object '{obj.name}': {exc}") from None
+
+
+class _GPUObject:
+    """An object's mesh buffers, material resources and compiled program per mode."""
+
+    def __init__(
+        self, ctx: moderngl.Context, obj: SceneObject, mesh: Mesh, target: str, options: RenderOptions
+    ):
+        self.ctx, self.obj, self.mesh, self.target, self.options = ctx, obj, mesh, target, options
+        self.vbo = ctx.buffer(np.ascontiguousarray(mesh.interleaved(), dtype=np.float32).tobytes())
+        self.ibo = ctx.buffer(np.ascontiguousarray(mesh.indices, dtype=np.uint32).tobytes())
+        self.resources = obj.material.upload(ctx)
+        self.programs: dict[str, tuple[moderngl.Program, moderngl.VertexArray]] = {}
+        solid = obj.material.solid_from_object
+        lo, hi = mesh.bounds()
+        corners = np.array(
+            [[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+        )
+        self.solid_extent = float(np.abs(corners @ solid.T)[:, :3].max())
+
+    def program(self, mode: str) -> tuple[moderngl.Program, moderngl.VertexArray]:
+        if mode not in self.programs:
+            vertex, fragment = self.obj.material.shader_sources()
+            defines = {mode_define(mode): True, **self.obj.material.defines(self.options)}
+            prog = build_program(self.ctx, vertex, fragment, target=self.target, defines=defines)
+            layout, names = [], []
+            for name, n in (("in_pos", 3), ("in_nrm", 3), ("in_tan", 4), ("in_uv", 2)):
+                if name in prog:
+                    layout.append(f"{n}f")
+                    names.append(name)
+                else:
+                    layout.append(f"{4 * n}x")
+            vao = self.ctx.vertex_array(
+                prog, [(self.vbo, " ".join(layout), *names)], index_buffer=self.ibo, index_element_size=4
+            )
+            self.programs[mode] = (prog, vao)
+        return self.programs[mode]
+
+    def release(self) -> None:
+        for prog, vao in self.programs.values():
+            vao.release()
+            prog.release()
+        self.vbo.release()
+        self.ibo.release()
+        self.obj.material.release(self.resources)
+
+
+def _set(prog: moderngl.Program, name: str, value: object) -> None:
+    if name in prog:
+        if isinstance(value, bytes):
+            prog[name].write(value)
+        else:
+            prog[name].value = value
+
+
+def _mat4(m: np.ndarray) -> bytes:
+    return np.ascontiguousarray(m.T, dtype=np.float32).tobytes()
+
+
+class Renderer:
+    """Renders one scene at one size; programs are compiled per (object, mode) on first use."""
+
+    def __init__(
+        self,
+        scene: Scene,
+        size: tuple[int, int] | None = None,
+        target: str = "gl330",
+        options: RenderOptions | None = None,
+    ):
+        self.ctx = ctx = gl_context()
+        self.scene, self.options = scene, options or RenderOptions()
+        self.size = size or scene.size
+        self.objects = [_GPUObject(ctx, obj, build_mesh(obj), target, self.options) for obj in scene.objects]
+        self.objects.sort(key=lambda g: g.obj.blend != "opaque")  # opaque first, then "over" in file order
+        w, h = self.size
+        self.colour = ctx.texture((w, h), 4, dtype="f4")
+        self.depth = ctx.depth_renderbuffer((w, h))
+        self.fbo = ctx.framebuffer([self.colour], self.depth)
+        self.accum_tex = ctx.texture((w, h), 4, dtype="f4")
+        self.accum = ctx.framebuffer([self.accum_tex])
+        self.accumulate = build_program(ctx, _ACCUMULATE_VERT, _ACCUMULATE_FRAG, target="gl330")
+        self.accumulate_vao = ctx.vertex_array(self.accumulate, [])
+
+    # -- drawing -------------------------------------------------------------------------------
+    def draw(self, mode: str, t: float = 0.0, jitter_px: tuple[float, float] = (0.0, 0.0)) -> None:
+        """Draw into self.fbo (premultiplied RGBA, cleared to transparent black)."""
+        ctx, scene = self.ctx, self.scene
+        w, h = self.size
+        camera = scene.camera.at(t)
+        clip_from_world = camera.projection_matrix(w / h) @ camera.view_matrix()
+        self.fbo.use()
+        ctx.viewport = (0, 0, w, h)
+        ctx.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        ctx.enable(moderngl.DEPTH_TEST)
+        jitter = (2.0 * jitter_px[0] / w, 2.0 * jitter_px[1] / h)
+        for gpu in self.objects:
+            obj = gpu.obj
+            prog, vao = gpu.program(mode)
+            world_from_object = obj.world_from_object
+            _set(prog, "u_clipFromObject", _mat4(clip_from_world @ world_from_object))
+            normal = np.linalg.inv(world_from_object[:3, :3]).T
+            if "u_worldNormalFromObject" in prog:
+                prog["u_worldNormalFromObject"].write(
+                    np.ascontiguousarray(normal.T, dtype=np.float32).tobytes()
+                )
+            _set(prog, "u_solidFromObject", _mat4(obj.material.solid_from_object))
+            _set(prog, "u_jitter", jitter)
+            step = 0.0
+            if self.options.quant_bits:
+                step = 2.0 * gpu.solid_extent / 2.0**self.options.quant_bits
+            _set(prog, "u_quantStep", step)
+            _set(prog, "sh_lit", int(obj.lit))
+            _set(prog, "sh_ambient", scene.ambient if scene.lights else 1.0)
+            _set(prog, "sh_lightCount", len(scene.lights))
+            lights = scene.lights[:4] + [Light(np.zeros(3), np.zeros(3))] * (4 - len(scene.lights[:4]))
+            if "sh_lightDirection" in prog:
+                prog["sh_lightDirection"].write(
+                    np.stack([x.direction for x in lights]).astype(np.float32).tobytes()
+                )
+            if "sh_lightColour" in prog:
+                prog["sh_lightColour"].write(
+                    np.stack([x.colour for x in lights]).astype(np.float32).tobytes()
+                )
+            obj.material.bind(prog, gpu.resources, t, self.options)
+            if obj.double_sided:
+                ctx.disable(moderngl.CULL_FACE)
+            else:
+                ctx.enable(moderngl.CULL_FACE)
+            if obj.blend == "over":
+                ctx.enable(moderngl.BLEND)
+                ctx.blend_func = moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA
+                ctx.depth_mask = False
+            else:
+                ctx.disable(moderngl.BLEND)
+                ctx.depth_mask = True
+            vao.render(moderngl.TRIANGLES)
+        ctx.depth_mask = True
+        ctx.disable(moderngl.BLEND)
+
+    def _read(self, texture: moderngl.Texture) -> np.ndarray:
+        w, h = self.size
+        data = np.frombuffer(texture.read(), dtype=np.float32).reshape(h, w, 4)
+        return data[::-1].copy()
+
+    def render(self, mode: str, t: float = 0.0) -> np.ndarray:
+        """Premultiplied linear RGBA (H, W, 4), top row first."""
+        if mode == REFERENCE:
+            return self.reference()
+        self.draw(mode, t)
+        return self._read(self.colour)
+
+    def reference(
+        self,
+        spp: int = 1024,
+        t: float = 0.0,
+        seed: int = 0,
+        progress: Callable[[int, int], None] | None = None,
+    ) -> np.ndarray:
+        """Mean of N x N stratified jittered passes of the `point` appearance (N = round(sqrt(spp)))."""
+        n = max(1, round(math.sqrt(spp)))
+        rng = np.random.default_rng(seed)
+        offsets = [
+            ((i + rng.random()) / n - 0.5, (j + rng.random()) / n - 0.5) for j in range(n) for i in range(n)
+        ]
+        self.accum.use()
+        self.ctx.clear(0.0, 0.0, 0.0, 0.0)
+        for k, jitter in enumerate(offsets):
+            self.draw("point", t, jitter)
+            self.accum.use()
+            self.ctx.viewport = (0, 0, *self.size)
+            self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+            self.ctx.enable(moderngl.BLEND)
+            self.ctx.blend_func = moderngl.ONE, moderngl.ONE
+            self.colour.use(location=0)
+            self.accumulate["u_pass"].value = 0
+            self.accumulate_vao.render(moderngl.TRIANGLES, vertices=3)
+            self.ctx.disable(moderngl.BLEND)
+            if progress:
+                progress(k + 1, len(offsets))
+        return self._read(self.accum_tex) / len(offsets)
+
+    # -- timing --------------------------------------------------------------------------------
+    def time_modes(
+        self, modes: list[str], frames: int = 7, t: float = 0.0, batch: int = 3
+    ) -> dict[str, float]:
+        """Median wall-clock time of one frame per mode, in milliseconds.
+
+        Modes are measured round-robin (`frames` rounds; each round draws every mode `batch` times and
+        ends with glFinish), so that drifts of the machine's load hit every mode alike. GL timer queries
+        are not used: on llvmpipe they return the time to queue commands, not to rasterise them
+        (measured: 0.02 ms for a frame that takes 3 ms of wall time).
+        """
+        for mode in modes:  # compile and warm up
+            self.draw(mode, t)
+        self.ctx.finish()
+        samples: dict[str, list[float]] = {mode: [] for mode in modes}
+        for _ in range(frames):
+            for mode in modes:
+                start = time.perf_counter()
+                for _ in range(batch):
+                    self.draw(mode, t)
+                self.ctx.finish()
+                samples[mode].append(1000.0 * (time.perf_counter() - start) / batch)
+        return {mode: statistics.median(values) for mode, values in samples.items()}
+
+    def time_reference(self, spp: int, t: float = 0.0) -> float:
+        """Wall-clock milliseconds of one reference frame (all spp passes)."""
+        self.ctx.finish()
+        start = time.perf_counter()
+        self.reference(spp, t)
+        self.ctx.finish()
+        return 1000.0 * (time.perf_counter() - start)
+
+    def release(self) -> None:
+        for gpu in self.objects:
+            gpu.release()
+        for obj in (
+            self.fbo,
+            self.colour,
+            self.depth,
+            self.accum,
+            self.accum_tex,
+            self.accumulate_vao,
+            self.accumulate,
+        ):
+            obj.release()
+
+
+def composite(rgba: np.ndarray, background: np.ndarray) -> np.ndarray:
+    """Premultiplied RGBA over a constant linear background -> linear RGB."""
+    return rgba[..., :3] + (1.0 - rgba[..., 3:4]) * np.asarray(background, dtype=np.float32)
+
+
+def coverage_mask(reference_rgba: np.ndarray, threshold: float = 1.0 - 1e-4) -> np.ndarray:
+    """Pixels fully covered by the scene's surfaces (every reference sample hit an opaque surface)."""
+    return reference_rgba[..., 3] >= threshold

@@ -1,0 +1,207 @@
+"""Hart, Carr, Kameya, Tibbitts, Coleman 1999, "Antialiased parameterized solid texturing".
+
+The model (eq. 1): p(s) = c(q(s) + sum_i a_i n(T_i s + o_i)), with
+  q(s)  = s^T Q s, Q the symmetric 4x4 matrix of the 10 coefficients A..J of eq. (3)/(4)
+          (q = As^2 + 2Bst + 2Csr + 2Ds + Et^2 + 2Ftr + 2Gt + Hr^2 + 2Ir + J);
+  n     = Perlin's 2002 improved noise (glsl/common/noise.glsl), T_i a 3x3 matrix, o_i an offset that
+          may move with animation time t (o_i + t v_i: the fire phase of eq. 8);
+  c     = a colour table of n entries with a modulo or clamp flag (eq. 2, colormap/table.py).
+Solid coordinates s are the object-space position mapped by `solidFromObject` (scale, offset).
+Gradient (eqs. 10-12): df/ds = 2 (Q s)_xyz + sum_i a_i T_i^T dn(T_i s + o_i); the shader multiplies it by
+the screen Jacobian ds/dx (dFdx/dFdy of s) to get the colour-table filter width |grad f| (section 3).
+
+Scene TOML (under [object.material], type = "hart"):
+  quadric = [A, B, C, D, E, F, G, H, I, J]            default all zero
+  solid_scale = 1.0 or [sx, sy, sz]; solid_offset = [x, y, z]
+  [[object.material.noise]]  amplitude, scale (number or 3), matrix (3x3, overrides scale), offset, velocity
+  [object.material.fractal]  octaves, first = 1, lacunarity = 2, gain = 0.5, amplitude = 1, scale, offset,
+                             velocity: expands to terms amplitude*gain^i n(lacunarity^i scale*s + offset),
+                             i = first .. first+octaves-1 (eqs. 6-8)
+  [object.material.colour_table]  wrap = "modulo"|"clamp", size = 256, interpolation = "linear"|"step",
+                             stops = [[position, "#rrggbb" or "#rrggbbaa"], ...]
+At most 8 noise terms (the paper's hardware limit).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from prefilter.colormap.table import ColourTable
+from prefilter.procedural.noise import linear_noise_grad, perlin_noise_grad
+from prefilter.scene import Reader, register_material
+
+MAX_TERMS = 8
+REDUCED_TERMS = 2  # Hart §4.2: the reduced variant keeps the two lowest-frequency terms
+PACKAGE_ROOT = Path(__file__).resolve().parent.parent
+SHADER_DIR = Path(__file__).resolve().parent
+
+# Filtered modes of this technique, in the order reports list them. "hart-width" (Fig. 9c) is a
+# visualisation of the filter width, not an appearance, so it is rendered but never scored.
+FILTERED_MODES = ("hart-mip", "hart-sat", "hart-mip-aniso", "hart-sat-aniso")
+DIAGNOSTIC_MODES = ("hart-width",)
+
+
+@dataclass
+class NoiseTerm:
+    amplitude: float
+    matrix: np.ndarray  # T_i, 3x3
+    offset: np.ndarray  # o_i
+    velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))  # d o_i / dt
+
+    def offset_at(self, t: float) -> np.ndarray:
+        return self.offset + t * self.velocity
+
+
+@dataclass
+class HartMaterial:
+    quadric: np.ndarray  # Q, symmetric 4x4
+    terms: list[NoiseTerm]
+    table: ColourTable
+    solid_from_object: np.ndarray  # 4x4 affine
+
+    kind = "hart"
+
+    def modes(self) -> tuple[str, ...]:
+        return FILTERED_MODES
+
+    def diagnostic_modes(self) -> tuple[str, ...]:
+        return DIAGNOSTIC_MODES
+
+    def animated(self) -> bool:
+        return any(np.any(term.velocity != 0) for term in self.terms)
+
+    # -- GPU -------------------------------------------------------------------------------------
+    def shader_sources(self) -> tuple[Path, Path]:
+        return PACKAGE_ROOT / "glsl/common/surface.vert", SHADER_DIR / "hart.frag"
+
+    def defines(self, options) -> dict[str, object]:
+        count = min(len(self.terms), REDUCED_TERMS) if options.reduced else len(self.terms)
+        defines: dict[str, object] = {"PT_TERM_COUNT": count}
+        if options.reduced:
+            defines["PT_REDUCED"] = True
+        return defines
+
+    def upload(self, ctx):
+        """Colour tables go up premultiplied: filtering must average premultiplied colour."""
+        return self.table.premultiplied().upload(ctx)
+
+    def release(self, resources) -> None:
+        resources.release()
+
+    def bind(self, prog, textures, t: float, options) -> None:
+        for unit, (name, texture) in enumerate(
+            (("u_tablePoint", textures.point), ("u_tableMip", textures.mip), ("u_tableSat", textures.sat))
+        ):
+            if name in prog:
+                texture.use(location=unit)
+                prog[name].value = unit
+        if "u_wrap" in prog:
+            prog["u_wrap"].value = textures.wrap_code
+        if "pt_quadric" in prog:
+            prog["pt_quadric"].write(np.ascontiguousarray(self.quadric.T, dtype=np.float32).tobytes())
+        count = self.defines(options)["PT_TERM_COUNT"]
+        terms = self.terms[:count]
+        if terms and "pt_noiseMatrix" in prog:
+            prog["pt_noiseMatrix"].write(
+                np.stack([term.matrix.T for term in terms]).astype(np.float32).tobytes()
+            )
+        if terms and "pt_noiseOffset" in prog:
+            prog["pt_noiseOffset"].write(
+                np.stack([term.offset_at(t) for term in terms]).astype(np.float32).tobytes()
+            )
+        if terms and "pt_noiseAmplitude" in prog:
+            prog["pt_noiseAmplitude"].write(
+                np.array([term.amplitude for term in terms], np.float32).tobytes()
+            )
+
+    def driver(self, s: np.ndarray, t: float = 0.0, reduced_terms: int | None = None, linear: bool = False):
+        """NumPy float64 reference of f(s) and df/ds (eqs. 1, 10-12); s has shape (..., 3)."""
+        s = np.asarray(s, dtype=np.float64)
+        s4 = np.concatenate([s, np.ones(s.shape[:-1] + (1,))], axis=-1)
+        qs = s4 @ self.quadric  # Q symmetric
+        f = np.einsum("...i,...i->...", s4, qs)
+        grad = 2.0 * qs[..., :3]
+        noise_grad = linear_noise_grad if linear else perlin_noise_grad
+        for term in self.terms[: reduced_terms or len(self.terms)]:
+            p = s @ term.matrix.T + term.offset_at(t)
+            value, dn = noise_grad(p)
+            f = f + term.amplitude * value
+            grad = grad + term.amplitude * (dn @ term.matrix)
+        return f, grad
+
+
+def quadric_matrix(coefficients: np.ndarray) -> np.ndarray:
+    """Eq. (4): the symmetric matrix of q = As^2 + 2Bst + 2Csr + 2Ds + Et^2 + 2Ftr + 2Gt + Hr^2 + 2Ir + J."""
+    a, b, c, d, e, f, g, h, i, j = coefficients
+    return np.array([[a, b, c, d], [b, e, f, g], [c, f, h, i], [d, g, i, j]], dtype=np.float64)
+
+
+def _matrix_from(r: Reader) -> np.ndarray:
+    if r.has("matrix"):
+        return r.matrix("matrix", 3, 3)
+    return np.diag(r.vector("scale", 3, default=[1.0, 1.0, 1.0]))
+
+
+@register_material("hart")
+def parse_hart(r: Reader, base_dir: Path) -> HartMaterial:
+    quadric = quadric_matrix(r.vector("quadric", 10, default=[0.0] * 10))
+    solid = np.eye(4)
+    solid[:3, :3] = np.diag(r.vector("solid_scale", 3, default=[1.0, 1.0, 1.0]))
+    solid[:3, 3] = r.vector("solid_offset", 3, default=[0.0, 0.0, 0.0])
+    terms: list[NoiseTerm] = []
+    for nr in r.children("noise"):
+        terms.append(
+            NoiseTerm(
+                amplitude=nr.number("amplitude", 1.0),
+                matrix=_matrix_from(nr),
+                offset=nr.vector("offset", 3, default=[0.0, 0.0, 0.0]),
+                velocity=nr.vector("velocity", 3, default=[0.0, 0.0, 0.0]),
+            )
+        )
+        nr.finish()
+    fr = r.child("fractal")
+    if fr is not None:
+        octaves = fr.integer("octaves", 4, lo=1, hi=MAX_TERMS)
+        first = fr.integer("first", 1, lo=-16, hi=16)
+        lacunarity = fr.number("lacunarity", 2.0, lo=1e-3)
+        gain = fr.number("gain", 0.5)
+        amplitude = fr.number("amplitude", 1.0)
+        base = _matrix_from(fr)
+        offset = fr.vector("offset", 3, default=[0.0, 0.0, 0.0])
+        velocity = fr.vector("velocity", 3, default=[0.0, 0.0, 0.0])
+        for i in range(first, first + octaves):
+            terms.append(NoiseTerm(amplitude * gain**i, lacunarity**i * base, offset.copy(), velocity.copy()))
+        fr.finish()
+    if len(terms) > MAX_TERMS:
+        raise r.fail("noise", f"at most {MAX_TERMS} noise terms (noise + fractal octaves), got {len(terms)}")
+    tr = r.child("colour_table", required=True)
+    assert tr is not None
+    table = parse_colour_table(tr)
+    return HartMaterial(quadric, terms, table, solid)
+
+
+def parse_colour_table(r: Reader) -> ColourTable:
+    from prefilter import PrefilterError
+
+    stops = r.raw("stops")
+    if not isinstance(stops, list) or not stops:
+        raise r.fail("stops", "expected a list of [position, colour] pairs")
+    pairs = []
+    for i, stop in enumerate(stops):
+        if not (isinstance(stop, list) and len(stop) == 2 and isinstance(stop[0], int | float)):
+            raise r.fail(f"stops[{i}]", f"expected [position, colour], got {stop!r}")
+        pairs.append((float(stop[0]), stop[1]))
+    try:
+        table = ColourTable.from_stops(
+            pairs,
+            n=r.integer("size", 256, lo=2, hi=65536),
+            wrap=r.string("wrap", "modulo", choices=("modulo", "clamp")),
+            interpolation=r.string("interpolation", "linear", choices=("linear", "step")),
+        )
+    except PrefilterError as exc:
+        raise r.fail("stops", str(exc)) from None
+    r.finish()
+    return table

@@ -1,0 +1,100 @@
+"""Scene files: every preset parses; invalid files give one-line errors naming file and key path (exit 2)."""
+
+from pathlib import Path
+
+import pytest
+
+from prefilter.cli import main
+from prefilter.scene import SceneError, load_scene, preset_names, resolve_scene
+
+VALID = """
+name = "t"
+size = [64, 48]
+[camera]
+eye = [0.0, 0.0, 3.0]
+target = [0.0, 0.0, 0.0]
+[[object]]
+shape = "sphere"
+[object.material]
+type = "hart"
+[object.material.colour_table]
+stops = [[0.0, "#000000"], [1.0, "#ffffff"]]
+"""
+
+
+def test_every_preset_parses():
+    names = preset_names()
+    assert {
+        "wood-teapot",
+        "marble-teapot",
+        "marble-cube",
+        "seascape",
+        "fire",
+        "planet",
+        "moonrise",
+        "zone-plate",
+        "wood-torus",
+    } <= set(names)
+    for name in names:
+        scene = resolve_scene(name)
+        assert scene.objects and scene.camera.fov > 0
+
+
+def test_valid_minimal_scene(tmp_path):
+    path = tmp_path / "ok.toml"
+    path.write_text(VALID)
+    scene = load_scene(path)
+    assert scene.size == (64, 48) and scene.objects[0].shape == "sphere"
+
+
+BAD = [
+    ("name = \n", "TOML syntax error"),
+    (VALID.replace("[camera]\neye = [0.0, 0.0, 3.0]\n", "[camera]\n"), "camera.eye: missing"),
+    (
+        VALID.replace("target = [0.0, 0.0, 0.0]", 'target = [0.0, 0.0, 0.0]\nfov = "wide"'),
+        "camera.fov: expected a number",
+    ),
+    (VALID.replace('shape = "sphere"', 'shape = "cylinder"'), "object[0].shape: expected one of"),
+    (VALID.replace('shape = "sphere"', 'shape = "sphere"\ncolour = 3'), "object[0].colour: unknown key"),
+    (VALID.replace('"#ffffff"', '"#ffzzff"'), "object[0].material.colour_table.stops"),
+    (VALID.replace("[[0.0,", "[[0.7,").replace("[1.0,", "[0.2,"), "object[0].material.colour_table.stops"),
+    (
+        VALID.replace('type = "hart"', 'type = "hart"\n[object.material.fractal]\noctaves = 9'),
+        "object[0].material.fractal.octaves",
+    ),
+    (VALID.replace('shape = "sphere"', 'mesh = "nowhere.obj"'), "object[0].mesh: file not found"),
+    (VALID.replace("size = [64, 48]", "size = [64]"), "size: expected a list of 2 numbers"),
+    (VALID.replace('type = "hart"', 'type = "velvet"'), "object[0].material.type: expected one of"),
+]
+
+
+@pytest.mark.parametrize("text,expected", BAD)
+def test_invalid_scene_errors_name_the_key(tmp_path, capsys, text, expected):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(SceneError) as info:
+        load_scene(path)
+    message = str(info.value)
+    assert str(path) in message and expected in message and "\n" not in message
+    out = tmp_path / "out.png"
+    assert main(["render", str(path), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("prefilter: error:") and expected in err[0]
+    assert not out.exists()
+
+
+def test_toml_syntax_error_names_line(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text('name = "x"\n[camera\n')
+    with pytest.raises(SceneError, match=r"line 2"):
+        load_scene(path)
+
+
+def test_unknown_preset_lists_presets():
+    with pytest.raises(SceneError, match="wood-teapot"):
+        resolve_scene("no-such-preset")
+
+
+def test_missing_scene_file(tmp_path):
+    with pytest.raises(SceneError, match="cannot read"):
+        load_scene(Path(tmp_path) / "absent.toml")
