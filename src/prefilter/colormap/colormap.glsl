@@ -15,8 +15,8 @@
 //   - Textures (see TableTextures): point  n x 1 RGBA32F NEAREST;
 //     mip    n x 1 RGBA32F, all levels from ColourTable.mip_levels(), LINEAR_MIPMAP_LINEAR, repeat in x
 //            for modulo tables, clamp-to-edge for clamp tables (the wrap lives in the texture);
-//     sat    (n+1) x 2 RGBA32F NEAREST: the summed-area table S (S[0] = 0, S[i+1] = S[i] + clut[i],
-//            eq. 13 with a leading zero) split as row 0 = float32(S), row 1 = float32(S - row 0).
+//     sat    (n+3) x 1 RGBA32F LINEAR: the summed-area table S (S[0] = 0, S[i+1] = S[i] + clut[i],
+//            eq. 13 with a leading zero) in texels 0..n, then clut[0] and clut[n-1].
 //
 // Functions
 //   vec4 cm_point(sampler2D table, float f, int wrapMode)      eq. (2), "round" read as nearest texel:
@@ -27,19 +27,20 @@
 //        that level's texel centres. Beyond the ends of a clamp table the coarse levels return the mean
 //        of the last block, not clut[0] / clut[n-1] (a limit of MIP-mapping). For modulo tables with a
 //        large |f|, pass f - round(f) to keep texture-coordinate precision.
-//   vec4 cm_sat(sampler2D sat, float f, float width, int wrapMode)   eqs. (13)-(15): the exact mean of
-//        the piecewise-constant table over [f - w/2, f + w/2] (S is piecewise linear, so interpolating S
-//        between integer entries is its exact integral), with the boundary cases of §3.3.2:
-//          modulo: whole periods counted plus partial sums; Hart's rule w >= 1 (w * n >= N) returns the
-//                  whole-table mean S[n] / n;
+//   vec4 cm_sat(sampler2D sat, float f, float width, int wrapMode)   eqs. (13)-(15): the mean of the
+//        piecewise-constant table over [f - w/2, f + w/2] as a difference of S at the two ends (S is
+//        piecewise linear, so the texture unit's linear filter between integer entries is its exact
+//        integral), with the boundary cases of §3.3.2:
+//          modulo: I(y) = floor(y/n) S[n] + S(y mod n) at both ends; Hart's rule w >= 1 (w * n >= N)
+//                  returns the whole-table mean S[n] / n;
 //          clamp:  the parts of the footprint beyond the ends weighted by clut[0] / clut[n-1]. For w >= 1
 //                  this exact edge-extended integral is kept instead of Hart's whole-table mean: it is
 //                  right when the footprint lies mostly off one end.
-//        Float32: the ends are placed relative to the texel of f (whole periods removed in texel units),
-//        so the fractions of the two end texels keep ~1e-7 precision; complete texels come from
-//        double-float differences of S and the end texels from their entries (eq. 14). All weights are
-//        non-negative, so the result is a convex combination of entries: ~1e-6 absolute for w down to
-//        1e-4 and any f. Cost: about 10 texel fetches.
+//        Widths below one entry are widened to one entry, as MIP level 0 does: a float32 S of a 256-entry
+//        table has ~3e-5 absolute error, which a narrower footprint would divide by its width. The
+//        result is then within ~3e-5 of the exact box mean over max(w, 1/n). No data-dependent branch
+//        (wrapMode is uniform): llvmpipe runs both sides of a divergent branch, and an earlier exact
+//        version with special cases cost 2.4x more than this one.
 //   vec4 cm_mip2(sampler2D mipTable, float f, float wa, float wb)
 //   vec4 cm_sat2(sampler2D sat, float f, float wa, float wb, int wrapMode)
 //        Two-axis footprint: over a square pixel with screen gradient (wa, wb) = (df/dx, df/dy), f is
@@ -99,88 +100,37 @@ vec4 cm_mip2(sampler2D mipTable, float f, float wa, float wb) {
 
 // --- summed-area colour table (eqs. 13-15) ---------------------------------------------------------
 
-vec4 cm_satHi(sampler2D sat, int i) {
-    return texelFetch(sat, ivec2(i, 0), 0);
-}
-
-vec4 cm_satLo(sampler2D sat, int i) {
-    return texelFetch(sat, ivec2(i, 1), 0);
-}
-
-// Entry i (0 <= i < n) recovered from the table, eq. (14): clut[i] = S[i+1] - S[i].
-vec4 cm_satEntry(sampler2D sat, int i) {
-    return (cm_satHi(sat, i + 1) - cm_satHi(sat, i)) + (cm_satLo(sat, i + 1) - cm_satLo(sat, i));
-}
-
-// Integral of the table over the texel interval [ka + ta, kb + tb] (ka <= kb, ta and tb in [0, 1],
-// kb - ka <= n + 1), texel indices taken modulo n; `weight` receives the interval's length. The two end
-// texels contribute (1 - ta) and tb of their entries, the complete texels between them
-// P(kb) - P(ka + 1) with P(k) = q S[n] + S[r] for k = q n + r (eq. 15 with the modulo case of §3.3.2).
-vec4 cm_satSpan(sampler2D sat, int n, int ka, float ta, int kb, float tb, out float weight) {
-    int qa = int(floor(float(ka) / float(n)));
-    int qb = int(floor(float(kb) / float(n)));
-    int ra = ka - qa * n;
-    int rb = kb - qb * n;
-    vec4 ca = cm_satEntry(sat, ra);
-    if (ka == kb) {
-        weight = tb - ta;
-        return weight * ca;
-    }
-    vec4 cb = cm_satEntry(sat, rb);
-    vec4 hi;
-    vec4 lo;
-    if (qb == qa) {
-        hi = cm_satHi(sat, rb) - cm_satHi(sat, ra + 1);
-        lo = cm_satLo(sat, rb) - cm_satLo(sat, ra + 1);
-    } else {  // wraps: the rest of ka's period, whole periods, the start of kb's period
-        float periods = float(qb - qa - 1);
-        hi = (cm_satHi(sat, n) - cm_satHi(sat, ra + 1)) + cm_satHi(sat, rb) + periods * cm_satHi(sat, n);
-        lo = (cm_satLo(sat, n) - cm_satLo(sat, ra + 1)) + cm_satLo(sat, rb) + periods * cm_satLo(sat, n);
-    }
-    weight = (1.0 - ta) + tb + float(kb - ka - 1);
-    return (1.0 - ta) * ca + tb * cb + (hi + lo);
+// S(x), the integral of the table over [0, x] texels, x in [0, n]: the texture unit's linear filter
+// between S[i] and S[i+1] is exact for a piecewise-constant table.
+vec4 cm_satAt(sampler2D sat, float x, float fn) {
+    return textureLod(sat, vec2((x + 0.5) / (fn + 3.0), 0.5), 0.0);
 }
 
 vec4 cm_sat(sampler2D sat, float f, float width, int wrapMode) {
-    int n = textureSize(sat, 0).x - 1;
-    float fn = float(n);
-    float h = 0.5 * abs(width) * fn;  // half-width in texels
-    float weight;
+    float fn = float(textureSize(sat, 0).x - 3);
+    float w = max(abs(width) * fn, 1.0);  // texels; never below one entry (float32 sums, as MIP level 0)
+    float x = fn * f;                     // exact: n is a power of two
     vec4 sum;
-    int k;
-    if (wrapMode != CM_CLAMP) {
-        if (2.0 * h >= fn) {  // Hart: w >= N returns the average of the entire table
-            return (cm_satHi(sat, n) + cm_satLo(sat, n)) / fn;
-        }
-        float x = fn * f;  // exact (n is a power of two)
-        float kf = floor(x);
-        float t = x - kf;  // in [0, 1]; exact unless |x| < 1/2, then within 2^-24 texel
-        k = int(cm_modTexel(kf, fn));  // the texel of f in one period
-        float ya = t - h;  // the ends relative to texel k: rounded to ~1e-7 texel near t
-        float yb = t + h;
-        float fa = floor(ya);
-        float fb = floor(yb);
-        sum = cm_satSpan(sat, n, k + int(fa), ya - fa, k + int(fb), yb - fb, weight);
-    } else {
-        float x = fn * f;
-        float kf = clamp(floor(x), 0.0, fn - 1.0);
-        k = int(kf);
-        float t = x - kf;
-        float ya = t - h;
-        float yb = t + h;
-        float left = -kf;       // texel 0 relative to k
-        float right = fn - kf;  // texel n relative to k
-        float wl = max(min(yb, left) - ya, 0.0);   // length below the table: clut[0]
-        float wr = max(yb - max(ya, right), 0.0);  // length above it: clut[n-1]
-        float ia = clamp(ya, left, right);
-        float ib = clamp(yb, left, right);
-        float fa = floor(ia);
-        float fb = floor(ib);
-        sum = cm_satSpan(sat, n, k + int(fa), ia - fa, k + int(fb), ib - fb, weight);
-        sum += wl * cm_satEntry(sat, 0) + wr * cm_satEntry(sat, n - 1);
-        weight += wl + wr;
+    if (wrapMode == CM_CLAMP) {  // the parts beyond the ends weighted by clut[0] and clut[n-1]
+        float a = x - 0.5 * w;
+        float b = x + 0.5 * w;
+        vec4 first = texelFetch(sat, ivec2(int(fn) + 1, 0), 0);
+        vec4 last = texelFetch(sat, ivec2(int(fn) + 2, 0), 0);
+        float below = clamp(0.5 * w - x, 0.0, w);  // lengths beyond the ends, exact far from the table
+        float above = clamp(x + 0.5 * w - fn, 0.0, w);
+        sum = cm_satAt(sat, clamp(b, 0.0, fn), fn) - cm_satAt(sat, clamp(a, 0.0, fn), fn)
+            + below * first + above * last;
+    } else {  // I(y) = floor(y / n) S[n] + S(y mod n), the integral of the periodic table
+        x -= fn * floor(x / fn);  // one period, for float32 precision
+        float a = x - 0.5 * w;
+        float b = x + 0.5 * w;
+        float qa = floor(a / fn);
+        float qb = floor(b / fn);
+        vec4 total = texelFetch(sat, ivec2(int(fn), 0), 0);
+        sum = (qb - qa) * total + cm_satAt(sat, b - qb * fn, fn) - cm_satAt(sat, a - qa * fn, fn);
+        sum = w >= fn ? total * (w / fn) : sum;  // Hart: w >= N returns the whole-table average
     }
-    return weight > 0.0 ? sum / weight : cm_satEntry(sat, k);  // zero width: the point value
+    return sum / w;
 }
 
 vec4 cm_sat2(sampler2D sat, float f, float wa, float wb, int wrapMode) {

@@ -98,11 +98,13 @@ class TableTextures:
     mip:   n x 1 RGBA32F, levels 0..log2(n) uploaded from `ColourTable.mip_levels()`,
            LINEAR_MIPMAP_LINEAR / LINEAR, repeat_x for modulo, clamp-to-edge for clamp
                                                       -> cm_mip, cm_mip2 (textureLod)
-    sat:   (n+1) x 2 RGBA32F, NEAREST: row 0 = float32(S), row 1 = float32(S - row 0), a double-float
-           split of the summed-area table S (length n+1, leading zero). The second row keeps differences
-           of nearby sums exact to float32 relative precision: a plain float32 S of a 256-entry table has
-           absolute error ~1e-5, which a footprint of a fraction of a texel would divide by its width.
-                                                      -> cm_sat, cm_sat2 (texelFetch)
+    sat:   (n+3) x 1 RGBA32F, LINEAR: texels 0..n hold the summed-area table S (leading zero), so the
+           texture unit's linear filter at texel position x + 1/2 returns S(x), the exact integral of
+           the piecewise-constant table over [0, x] texels; texels n+1 and n+2 hold clut[0] and clut[n-1]
+           (the edge entries a clamp table extends with). One filtered fetch per footprint end keeps
+           the lookup branch-free; float32 S gives ~3e-5 absolute error in sums of a 256-entry table,
+           which cm_sat keeps small by never dividing by less than one texel.
+                                                      -> cm_sat, cm_sat2 (textureLod, texelFetch)
     n: table size; wrap_code: 0 modulo, 1 clamp (the `wrapMode` argument of the cm_ functions).
     """
 
@@ -238,7 +240,7 @@ class ColourTable:
         """Upload the point, MIP and summed-area textures (layout in `TableTextures`)."""
         n = self.n
         limit = int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 0) or 0)
-        if limit and n + 1 > limit:
+        if limit and n + 3 > limit:
             raise PrefilterError(
                 f"colour table of {n} entries is too large for this GL (max texture {limit})"
             )
@@ -255,11 +257,11 @@ class ColourTable:
         mip.repeat_x = self.wrap == "modulo"
         mip.repeat_y = False
 
-        sums = self.summed_area()
-        hi = sums.astype(np.float32)
-        lo = (sums - hi.astype(np.float64)).astype(np.float32)
-        sat = ctx.texture((n + 1, 2), 4, np.concatenate([hi, lo]).tobytes(), dtype="f4")
-        sat.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        sat_texels = np.concatenate([self.summed_area(), self.entries[:1], self.entries[-1:]]).astype(
+            np.float32
+        )
+        sat = ctx.texture((n + 3, 1), 4, sat_texels.tobytes(), dtype="f4")
+        sat.filter = (moderngl.LINEAR, moderngl.LINEAR)
         sat.repeat_x = sat.repeat_y = False
         return TableTextures(point, mip, sat, n, self.wrap_code)
 
