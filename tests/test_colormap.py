@@ -12,10 +12,11 @@ import numpy as np
 import pytest
 
 from prefilter import PrefilterError
-from prefilter.colormap.table import ColourTable, parse_srgb, srgb_to_linear
+from prefilter.colormap.table import ColourTable, parse_srgb
 from prefilter.gl.context import gl_context
 from prefilter.gl.evaluate import glsl_eval
 from prefilter.gl.program import build_program
+from prefilter.images import srgb_to_linear
 
 CM_GLSL = ("colormap/colormap.glsl",)
 TARGETS = ("gl330", "es300")

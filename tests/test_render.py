@@ -34,7 +34,7 @@ def test_every_preset_renders_in_every_mode(name):
         renderer.release()
 
 
-@pytest.mark.parametrize("name", ["wood-teapot", "planet", "seascape"])
+@pytest.mark.parametrize("name", preset_names())
 def test_every_program_compiles_as_es300(name):
     scene = resolve_scene(name)
     renderer = Renderer(scene, SMALL, target="es300")

@@ -142,7 +142,7 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument(
             "--reduced",
             action="store_true",
-            help="Hart's reduced 100,000-gate model: two noise terms, linear fade (§4.2)",
+            help="Hart's reduced 100,000-gate model: at most four noise terms, linear fade (§4.2)",
         )
 
     p = sub.add_parser("render", help="render one mode of a scene to PNG or EXR")

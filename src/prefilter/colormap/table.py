@@ -39,6 +39,7 @@ import moderngl
 import numpy as np
 
 from prefilter import PrefilterError
+from prefilter.images import srgb_to_linear
 
 WRAPS = ("modulo", "clamp")
 WRAP_CODES = {"modulo": 0, "clamp": 1}  # the `wrapMode` argument of the cm_ functions in colormap.glsl
@@ -48,12 +49,6 @@ _HEX = re.compile(r"^#([0-9a-fA-F]{6}|[0-9a-fA-F]{8})$")
 
 
 # --- sRGB --------------------------------------------------------------------------------------------
-
-
-def srgb_to_linear(v: np.ndarray | float) -> np.ndarray:
-    """IEC 61966-2-1 sRGB decoding (the piecewise curve, not a 2.2 power), elementwise on [0, 1]."""
-    v = np.asarray(v, dtype=np.float64)
-    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
 
 
 def parse_srgb(value: object) -> np.ndarray:

@@ -97,7 +97,7 @@ def assemble(
     seen: set[Path] = set()
     file_ids: dict[str, int] = {}
 
-    def include(text: str, name: str, directory: Path | None, chain: tuple[str, ...]) -> None:
+    def include(text: str, name: str, directory: Path | None) -> None:
         file_id = file_ids.setdefault(name, len(file_ids) + 1)
         if line_directives:
             emit(f"#line 1 {file_id}", (name, 0))
@@ -110,21 +110,19 @@ def assemble(
                 path = resolve_include(match.group(1), directory)
             except ShaderError as exc:
                 raise ShaderError(f"{name}:{number}: {exc}") from None
-            if path in seen:
+            if path in seen:  # each file once, which also ends include cycles
                 continue
-            if _display(path) in chain:
-                raise ShaderError(f"{name}:{number}: recursive #include of {match.group(1)}")
             seen.add(path)
-            include(path.read_text(), _display(path), path.parent, (*chain, name))
+            include(path.read_text(), _display(path), path.parent)
             if line_directives:
                 emit(f"#line {number + 1} {file_id}", (name, number))
 
     if isinstance(body, Path):
         path = body if body.is_absolute() else resolve_include(str(body), None)
         seen.add(path.resolve())
-        include(path.read_text(), _display(path), path.parent, ())
+        include(path.read_text(), _display(path), path.parent)
     else:
-        include(body, "<inline>", None, ())
+        include(body, "<inline>", None)
     if line_directives:  # file table for readers of exported shaders
         out.insert(1, "// source files: " + ", ".join(f"{i}={n}" for n, i in file_ids.items()))
         smap.insert(1, ("<preamble>", 0))

@@ -34,7 +34,7 @@ from prefilter.procedural.noise import linear_noise_grad, perlin_noise_grad
 from prefilter.scene import Reader, register_material
 
 MAX_TERMS = 8
-REDUCED_TERMS = 2  # Hart §4.2: the reduced variant keeps the two lowest-frequency terms
+REDUCED_TERMS = 4  # Hart §4.2: the reduced variant keeps the first (lowest-frequency) four terms
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent
 SHADER_DIR = Path(__file__).resolve().parent
 
