@@ -5,7 +5,7 @@ import pytest
 from prefilter.gl.context import gl_context
 from prefilter.gl.program import ShaderError, assemble, build_program
 
-FRAG = 'out vec4 c;\nvoid main() { c = vec4(nz_noise(vec3(gl_FragCoord.xy, 0.5))); }\n'
+FRAG = "out vec4 c;\nvoid main() { c = vec4(nz_noise(vec3(gl_FragCoord.xy, 0.5))); }\n"
 VERT = "void main() { gl_Position = vec4(0.0, 0.0, 0.0, 1.0); }\n"
 
 
@@ -25,7 +25,9 @@ def test_each_file_is_included_once(tmp_path):
     (tmp_path / "a.glsl").write_text('#include "b.glsl"\nfloat a() { return b(); }\n')
     (tmp_path / "b.glsl").write_text("float b() { return 1.0; }\n")
     main = tmp_path / "main.glsl"
-    main.write_text('#include "a.glsl"\n#include "b.glsl"\n' + "out vec4 c;\nvoid main() { c = vec4(a()); }\n")
+    main.write_text(
+        '#include "a.glsl"\n#include "b.glsl"\n' + "out vec4 c;\nvoid main() { c = vec4(a()); }\n"
+    )
     assembled = assemble(main)
     assert assembled.source.count("float b()") == 1
     line = assembled.source.splitlines().index("float a() { return b(); }") + 1

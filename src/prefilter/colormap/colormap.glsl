@@ -21,12 +21,12 @@
 // Functions
 //   vec4 cm_point(sampler2D table, float f, int wrapMode)      eq. (2), "round" read as nearest texel:
 //        clut[min(floor(n * wrap(f)), n - 1)], wrap = fract (modulo) or clamp to [0, 1] (clamp).
-//   vec4 cm_mip(sampler2D mipTable, float f, float width)       §3.3.1: trilinear MIP lookup at
-//        lod = log2(width * n) (level L holds box averages of 2^L texels). Approximate: a box of about
+//   vec4 cm_mip(sampler2D mipTable, float f, float width, int wrapMode)   §3.3.1: trilinear MIP lookup
+//        at lod = log2(width * n) (level L holds box averages of 2^L texels). Approximate: a box of about
 //        the right width with a tent reconstruction; exact when width * n is a power of two and f sits on
-//        that level's texel centres. Beyond the ends of a clamp table the coarse levels return the mean
-//        of the last block, not clut[0] / clut[n-1] (a limit of MIP-mapping). For modulo tables with a
-//        large |f|, pass f - round(f) to keep texture-coordinate precision.
+//        that level's texel centres. Clamp tables: the parts of the footprint beyond the ends are
+//        weighted by clut[0] / clut[n-1] and only the part inside [0, 1] is looked up (a coarse level
+//        alone would return the mean of the edge block, far from clut[n-1] when f is well beyond 1).
 //   vec4 cm_sat(sampler2D sat, float f, float width, int wrapMode)   eqs. (13)-(15): the mean of the
 //        piecewise-constant table over [f - w/2, f + w/2] as a difference of S at the two ends (S is
 //        piecewise linear, so the texture unit's linear filter between integer entries is its exact
@@ -41,7 +41,7 @@
 //        result is then within ~3e-5 of the exact box mean over max(w, 1/n). No data-dependent branch
 //        (wrapMode is uniform): llvmpipe runs both sides of a divergent branch, and an earlier exact
 //        version with special cases cost 2.4x more than this one.
-//   vec4 cm_mip2(sampler2D mipTable, float f, float wa, float wb)
+//   vec4 cm_mip2(sampler2D mipTable, float f, float wa, float wb, int wrapMode)
 //   vec4 cm_sat2(sampler2D sat, float f, float wa, float wb, int wrapMode)
 //        Two-axis footprint: over a square pixel with screen gradient (wa, wb) = (df/dx, df/dy), f is
 //        distributed as box(|wa|) convolved with box(|wb|) (a trapezoid). Approximated by the mean of
@@ -81,19 +81,35 @@ vec4 cm_point(sampler2D table, float f, int wrapMode) {
 
 // --- colour-table MIP map (§3.3.1) -----------------------------------------------------------------
 
-vec4 cm_mip(sampler2D mipTable, float f, float width) {
+vec4 cm_mip(sampler2D mipTable, float f, float width, int wrapMode) {
     float n = float(textureSize(mipTable, 0).x);
-    float lod = log2(max(abs(width) * n, 1.0));  // below one texel: level 0, magnified
-    return textureLod(mipTable, vec2(f, 0.5), lod);
+    float w = abs(width);
+    if (wrapMode != CM_CLAMP) {  // the texture repeats; one period keeps texture-coordinate precision
+        return textureLod(mipTable, vec2(f - floor(f), 0.5), log2(max(w * n, 1.0)));
+    }
+    // clamp: the parts of the footprint beyond the ends take the edge entries and the MIP map filters
+    // only the part inside [0, 1]; a coarse level alone would mix the edge entry with its whole block.
+    float ia = clamp(f - 0.5 * w, 0.0, 1.0);
+    float ib = clamp(f + 0.5 * w, 0.0, 1.0);
+    float inside = ib - ia;
+    vec4 mid = textureLod(mipTable, vec2(0.5 * (ia + ib), 0.5), log2(max(inside * n, 1.0)));
+    if (inside >= w) {
+        return mid;
+    }
+    float below = clamp(0.5 * w - f, 0.0, w);
+    float above = clamp(f + 0.5 * w - 1.0, 0.0, w);
+    vec4 first = texelFetch(mipTable, ivec2(0, 0), 0);
+    vec4 last = texelFetch(mipTable, ivec2(int(n) - 1, 0), 0);
+    return (below * first + above * last + inside * mid) / (below + above + inside);
 }
 
-vec4 cm_mip2(sampler2D mipTable, float f, float wa, float wb) {
+vec4 cm_mip2(sampler2D mipTable, float f, float wa, float wb, int wrapMode) {
     float wMax = max(abs(wa), abs(wb));
     float wMin = min(abs(wa), abs(wb));
     vec4 sum = vec4(0.0);
     for (int k = 0; k < CM_PROBES; ++k) {
         float offset = ((float(k) + 0.5) / float(CM_PROBES) - 0.5) * wMin;
-        sum += cm_mip(mipTable, f + offset, wMax);
+        sum += cm_mip(mipTable, f + offset, wMax, wrapMode);
     }
     return sum / float(CM_PROBES);
 }

@@ -40,11 +40,11 @@ void main() {
     float gx = dot(fg.xyz, dsdx);
     float gy = dot(fg.xyz, dsdy);
 #if defined(MODE_HART_MIP)
-    albedo = cm_mip(u_tableMip, fg.w, length(vec2(gx, gy)));
+    albedo = cm_mip(u_tableMip, fg.w, length(vec2(gx, gy)), u_wrap);
 #elif defined(MODE_HART_SAT)
     albedo = cm_sat(u_tableSat, fg.w, length(vec2(gx, gy)), u_wrap);
 #elif defined(MODE_HART_MIP_ANISO)
-    albedo = cm_mip2(u_tableMip, fg.w, gx, gy);
+    albedo = cm_mip2(u_tableMip, fg.w, gx, gy, u_wrap);
 #elif defined(MODE_HART_SAT_ANISO)
     albedo = cm_sat2(u_tableSat, fg.w, gx, gy, u_wrap);
 #elif defined(MODE_HART_WIDTH)
