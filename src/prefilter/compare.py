@@ -158,6 +158,9 @@ def write_comparison(comparison: Comparison, out_dir: str | os.PathLike) -> Path
             "",
         ]
         (staging / "report.md").write_text("\n".join(md))
+        umask = os.umask(0)
+        os.umask(umask)
+        staging.chmod(0o777 & ~umask)  # mkdtemp makes it private; the result is an ordinary directory
         if out.exists():
             shutil.rmtree(out)
         os.replace(staging, out)
