@@ -160,3 +160,14 @@ vec4 cm_sat2(sampler2D sat, float f, float wa, float wb, int wrapMode) {
     }
     return sum / float(CM_PROBES);
 }
+
+// --- Gaussian-preconvolved colour map (Heitz et al. 2013/2014 §4.2, eq. 9) ---------------------------
+// pre: the bake of colormap/gaussian.py, C̄(μ, σ) = [C * N(0, σ²)](μ), μ along x, σ along y (texel j at
+// σ = sigmaMax j / (rows - 1)); range = (lo, hi, sigmaMax): μ spans [lo, hi] (one period (0, 1) for
+// modulo tables, whose texture repeats). σ beyond sigmaMax uses sigmaMax.
+vec4 cm_gaussian(sampler2D pre, float mu, float sigma, int wrapMode, vec3 range) {
+    float rows = float(textureSize(pre, 0).y);
+    float u = wrapMode == CM_CLAMP ? (mu - range.x) / (range.y - range.x) : mu - floor(mu);
+    float v = (clamp(sigma / range.z, 0.0, 1.0) * (rows - 1.0) + 0.5) / rows;
+    return textureLod(pre, vec2(u, v), 0.0);
+}

@@ -6,6 +6,8 @@
 //   MODE_HART_MIP_ANISO / MODE_HART_SAT_ANISO  the two screen axes of the footprint kept apart: the
 //                       linearised f over a box pixel is box(|df/dx|) * box(|df/dy|), a trapezoid
 //   MODE_HART_WIDTH     the filter width in table entries, log scale 1 (black) .. n (white), Fig. 9c
+//   MODE_GAUSSIAN       Heitz et al.'s preconvolved colour map at the footprint's (μ, σ) of f
+//   MODE_GAUSSIAN_SIGMA diagnostic: (σ_lin, σ_res, 0), the linear (Hart) and unresolved-noise parts of σ
 // u_quantStep > 0 quantises solid coordinates to that step (Hart section 4.3, Fig. 10).
 
 #include "procedural/hart.glsl"
@@ -18,6 +20,8 @@ in vec3 v_normal;
 uniform sampler2D u_tablePoint;
 uniform sampler2D u_tableMip;
 uniform sampler2D u_tableSat;
+uniform sampler2D u_tableGaussian;
+uniform vec3 u_gaussianRange;
 uniform int u_wrap;
 uniform float u_quantStep;
 
@@ -35,6 +39,13 @@ void main() {
     albedo = cm_point(u_tablePoint, pt_driver(s), u_wrap);
 #elif defined(MODE_NAIVE)
     albedo = cm_point(u_tablePoint, pt_driverOctaveClamped(s, dsdx, dsdy), u_wrap);
+#elif defined(MODE_GAUSSIAN)
+    vec3 stats = pt_driverGaussian(s, dsdx, dsdy);
+    albedo = cm_gaussian(u_tableGaussian, stats.x, sqrt(stats.y + stats.z), u_wrap, u_gaussianRange);
+#elif defined(MODE_GAUSSIAN_SIGMA)
+    vec3 stats = pt_driverGaussian(s, dsdx, dsdy);
+    o_colour = vec4(sqrt(stats.y), sqrt(stats.z), 0.0, 1.0);
+    return;
 #else
     vec4 fg = pt_driverGrad(s);
     float gx = dot(fg.xyz, dsdx);

@@ -1,5 +1,6 @@
 // Hart et al. 1999, "Antialiased parameterized solid texturing": the driver f of eq. (1) and its
-// gradient (eqs. 10-12), plus the octave-clamped driver of today's renderers (the `naive` mode).
+// gradient (eqs. 10-12), the octave-clamped driver of today's renderers (the `naive` mode), and the
+// Gaussian statistics of f over the pixel footprint for Heitz et al.'s preconvolved colour maps.
 //
 //   f(s)   = s^T Q s + sum_i a_i n(T_i s + o_i)                          (eqs. 1, 3, 4)
 //   df/ds  = 2 (Q s)_xyz + sum_i a_i T_i^T DNoise(T_i s + o_i)           (eqs. 10-12)
@@ -74,4 +75,45 @@ float pt_driverOctaveClamped(vec3 s, vec3 dsdx, vec3 dsdy) {
         }
     }
     return f;
+}
+
+// --- Gaussian statistics of f over the footprint (Heitz et al. 2014 §4.2 + Hart's gradient) --------
+// For a box footprint whose axes have lengths rho1, rho2 in lattice units, procedural/noise_stats.py
+// measured (β, γ, λ): a term a n(T s + o) adds a β n to the mean, a γ T^T ∇n to the gradient and
+// a² λ σ_n² to the residual variance; the linear part over a box pixel has variance (g_x² + g_y²) / 12.
+// noise_stats.glsl holds separable smoothstep fits of that table (a lookup per term cost 1.3x).
+// Terms with β = γ = 0 (footprints over ~13 cells) are not evaluated: their noise only adds variance.
+
+#include "procedural/noise_stats.glsl"
+
+vec3 pt_noiseSplit(vec3 jx, vec3 jy) {
+    vec2 l = 0.5 * log2(max(vec2(dot(jx, jx), dot(jy, jy)), vec2(1e-30)));
+    vec2 b = 1.0 - smoothstep(NS_BETA_EDGES.x, NS_BETA_EDGES.y, l);
+    vec2 g = 1.0 - smoothstep(NS_GAMMA_EDGES.x, NS_GAMMA_EDGES.y, l);
+    vec2 h = 1.0 - smoothstep(NS_ONE_MINUS_LAMBDA_EDGES.x, NS_ONE_MINUS_LAMBDA_EDGES.y, l);
+    return vec3(b.x * b.y, g.x * g.y, 1.0 - h.x * h.y);
+}
+
+// (μ, σ_lin², σ_res²): the mean of f over the footprint, the variance of its linear part, and the
+// variance the unresolved noise leaves.
+vec3 pt_driverGaussian(vec3 s, vec3 dsdx, vec3 dsdy) {
+    vec4 s4 = vec4(s, 1.0);
+    vec4 qs = pt_quadric * s4;
+    float mu = dot(s4, qs);
+    vec3 grad = 2.0 * qs.xyz;
+    float residual = 0.0;
+    for (int i = 0; i < PT_TERM_COUNT; ++i) {
+        mat3 t = pt_noiseMatrix[i];
+        float a = pt_noiseAmplitude[i];
+        vec3 split = pt_noiseSplit(t * dsdx, t * dsdy);
+        if (max(abs(split.x), abs(split.y)) > 0.01) {
+            vec4 n = pt_noiseGrad(t * s + pt_noiseOffset[i]);
+            mu += a * split.x * n.w;
+            grad += a * split.y * (n.xyz * t);
+        }
+        residual += a * a * split.z;
+    }
+    float gx = dot(grad, dsdx);
+    float gy = dot(grad, dsdy);
+    return vec3(mu, (gx * gx + gy * gy) / 12.0, residual * NS_VARIANCE);
 }

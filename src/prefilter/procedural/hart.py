@@ -27,9 +27,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import moderngl
 import numpy as np
 
-from prefilter.colormap.table import ColourTable
+from prefilter.colormap.gaussian import preconvolve
+from prefilter.colormap.table import ColourTable, TableTextures
 from prefilter.procedural.noise import linear_noise_grad, perlin_noise_grad
 from prefilter.scene import Reader, register_material
 
@@ -40,8 +42,8 @@ SHADER_DIR = Path(__file__).resolve().parent
 
 # Filtered modes of this technique, in the order reports list them. "hart-width" (Fig. 9c) is a
 # visualisation of the filter width, not an appearance, so it is rendered but never scored.
-FILTERED_MODES = ("hart-mip", "hart-sat", "hart-mip-aniso", "hart-sat-aniso")
-DIAGNOSTIC_MODES = ("hart-width",)
+FILTERED_MODES = ("hart-mip", "hart-sat", "hart-mip-aniso", "hart-sat-aniso", "gaussian")
+DIAGNOSTIC_MODES = ("hart-width", "gaussian-sigma")
 
 
 @dataclass
@@ -56,11 +58,23 @@ class NoiseTerm:
 
 
 @dataclass
+class HartResources:
+    table: TableTextures
+    gaussian: moderngl.Texture
+    gaussian_range: tuple[float, float, float]  # (μ lo, μ hi, σ max) of the preconvolved map
+
+    def release(self) -> None:
+        self.table.release()
+        self.gaussian.release()
+
+
+@dataclass
 class HartMaterial:
     quadric: np.ndarray  # Q, symmetric 4x4
     terms: list[NoiseTerm]
     table: ColourTable
     solid_from_object: np.ndarray  # 4x4 affine
+    gaussian: dict = field(default_factory=dict)  # preconvolve() options (sigma_max, mu_range, sizes)
 
     kind = "hart"
 
@@ -84,22 +98,33 @@ class HartMaterial:
             defines["PT_REDUCED"] = True
         return defines
 
-    def upload(self, ctx):
+    def upload(self, ctx) -> HartResources:
         """Colour tables go up premultiplied: filtering must average premultiplied colour."""
-        return self.table.premultiplied().upload(ctx)
+        table = self.table.premultiplied()
+        gaussian = preconvolve(table, **self.gaussian)
+        return HartResources(
+            table.upload(ctx), gaussian.upload(ctx), (*gaussian.mu_range, gaussian.sigma_max)
+        )
 
-    def release(self, resources) -> None:
+    def release(self, resources: HartResources) -> None:
         resources.release()
 
-    def bind(self, prog, textures, t: float, options) -> None:
-        for unit, (name, texture) in enumerate(
-            (("u_tablePoint", textures.point), ("u_tableMip", textures.mip), ("u_tableSat", textures.sat))
-        ):
+    def bind(self, prog, resources: HartResources, t: float, options) -> None:
+        textures = resources.table
+        samplers = (
+            ("u_tablePoint", textures.point),
+            ("u_tableMip", textures.mip),
+            ("u_tableSat", textures.sat),
+            ("u_tableGaussian", resources.gaussian),
+        )
+        for unit, (name, texture) in enumerate(samplers):
             if name in prog:
                 texture.use(location=unit)
                 prog[name].value = unit
         if "u_wrap" in prog:
             prog["u_wrap"].value = textures.wrap_code
+        if "u_gaussianRange" in prog:
+            prog["u_gaussianRange"].value = resources.gaussian_range
         if "pt_quadric" in prog:
             prog["pt_quadric"].write(np.ascontiguousarray(self.quadric.T, dtype=np.float32).tobytes())
         count = self.defines(options)["PT_TERM_COUNT"]

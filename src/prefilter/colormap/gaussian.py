@@ -1,0 +1,177 @@
+"""Gaussian-preconvolved colour maps: Heitz, Nowrouzezahrai, Poulin, Neyret 2013 §4 / 2014 §4.2, eq. (9).
+
+    C̄(μ, σ) = ⟨C, N(μ, σ²)⟩ = [C * N(0, σ²)](μ)
+
+for the piecewise-constant colour table C of colormap/table.py (entry i over [i/n, (i+1)/n)),
+repeated for modulo tables (periodic convolution) and edge-extended for clamp tables. Sampled with σ,
+not σ² (Heitz 2014 footnote 3).
+
+Table layout (`PreconvolvedMap.data`, (n_sigma, n_mu, 4) float32, premultiplied like the table):
+  σ_j = sigma_max · j / (n_sigma − 1), j = 0 .. n_sigma − 1 (row 0 is the table itself);
+  modulo: μ_i = (i + 0.5) / n_mu over one period (the texture repeats in μ);
+  clamp:  μ_i = lo + (i + 0.5) (hi − lo) / n_mu over [lo, hi] = mu_range (clamped beyond: exact to
+          Φ(−3) = 0.1 % while the range reaches 3 σ_max past the table's ends).
+Lookup (cm_gaussian in colormap.glsl): u = μ (modulo) or (μ − lo)/(hi − lo) (clamp);
+v = (σ / sigma_max · (n_sigma − 1) + 0.5) / n_sigma, bilinear. σ > sigma_max uses σ_max: for modulo
+tables with sigma_max = 1 the result is the table mean to 1e-8 there; for clamp tables it is an error
+that grows with σ (documented limit).
+
+Bake: modulo tables by the exact Fourier series of the piecewise-constant table times the Gaussian's
+transfer function exp(−2π²σ²k²), |k| <= 2 n (exact to 1e-15 for σ >= 1/n); narrower σ and all clamp
+tables by the edge form C̄ = c_last + Σ_e (c_{e−1} − c_e) Φ((x_e − μ)/σ) over the entry edges x_e.
+Defaults: 256 x 256 (modulo), 256 per table period in μ (clamp), sigma_max = 1, mu_range = (-1, 2).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import moderngl
+import numpy as np
+from scipy.special import ndtr
+
+from prefilter.bake_cache import cached
+from prefilter.colormap.table import ColourTable
+
+BAKE_VERSION = 1
+
+
+@dataclass
+class PreconvolvedMap:
+    data: np.ndarray  # (n_sigma, n_mu, 4) float32
+    wrap: str
+    sigma_max: float
+    mu_range: tuple[float, float]  # clamp tables; (0, 1) for modulo
+
+    def mu_nodes(self) -> np.ndarray:
+        lo, hi = self.mu_range
+        n_mu = self.data.shape[1]
+        return lo + (np.arange(n_mu) + 0.5) * (hi - lo) / n_mu
+
+    def sigma_nodes(self) -> np.ndarray:
+        return self.sigma_max * np.arange(self.data.shape[0]) / (self.data.shape[0] - 1)
+
+    def upload(self, ctx: moderngl.Context) -> moderngl.Texture:
+        n_sigma, n_mu, _ = self.data.shape
+        texture = ctx.texture(
+            (n_mu, n_sigma), 4, np.ascontiguousarray(self.data, np.float32).tobytes(), dtype="f4"
+        )
+        texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        texture.repeat_x = self.wrap == "modulo"
+        texture.repeat_y = False
+        return texture
+
+    def lookup(self, mu: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+        """NumPy twin of cm_gaussian (bilinear with the same half-texel remapping), for tests."""
+        n_sigma, n_mu, _ = self.data.shape
+        lo, hi = self.mu_range
+        x = (np.asarray(mu, np.float64) - lo) / (hi - lo) * n_mu - 0.5
+        y = np.clip(np.asarray(sigma, np.float64) / self.sigma_max, 0.0, 1.0) * (n_sigma - 1)
+        x0 = np.floor(x).astype(int)
+        tx = x - x0
+        if self.wrap == "modulo":
+            xa, xb = x0 % n_mu, (x0 + 1) % n_mu
+        else:
+            xa, xb = np.clip(x0, 0, n_mu - 1), np.clip(x0 + 1, 0, n_mu - 1)
+            tx = np.where(x < 0, 0.0, np.where(x > n_mu - 1, 1.0, tx))
+        y0 = np.minimum(np.floor(y).astype(int), n_sigma - 2)
+        ty = y - y0
+        d = self.data.astype(np.float64)
+        row = lambda j: (1 - tx)[..., None] * d[j, xa] + tx[..., None] * d[j, xb]  # noqa: E731
+        return (1 - ty)[..., None] * row(y0) + ty[..., None] * row(y0 + 1)
+
+
+def gaussian_average(table: ColourTable, mu: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """Exact C̄(μ, σ) by the edge form (any wrap, any σ >= 0), float64; shapes broadcast, result (..., 4)."""
+    mu = np.asarray(mu, np.float64)
+    sigma = np.asarray(sigma, np.float64)
+    entries = table.entries.astype(np.float64)
+    n = table.n
+    if table.wrap == "modulo":
+        reach = int(np.ceil(8.0 * float(np.max(sigma)) + 2.0))
+        base = np.floor(mu)
+        periods = np.arange(-reach, reach + 1)
+        edges = (np.arange(n)[None, :] / n + periods[:, None]).ravel()  # edge e sits before entry e mod n
+        jumps = np.tile(np.roll(entries, 1, axis=0) - entries, (len(periods), 1))
+        start = entries[-1]  # value below the first edge considered: entry n-1 of the previous period
+        x = (
+            (edges[None, :] - (mu - base).reshape(-1, 1)).reshape(*mu.shape, -1)
+            if mu.ndim
+            else edges - (mu - base)
+        )
+    else:
+        edges = np.arange(1, n) / n
+        jumps = entries[:-1] - entries[1:]
+        start = entries[-1]
+        x = edges - mu[..., None] if mu.ndim else edges - mu
+    s = sigma[..., None] if sigma.ndim else sigma
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cdf = np.where(s > 0, ndtr(x / np.where(s > 0, s, 1.0)), (x > 0).astype(np.float64))
+    if table.wrap == "modulo":
+        # C̄ = c_{n-1} + Σ_e (c_{e-1} - c_e) Φ(...) with the edges of 2 reach + 1 periods around μ; the
+        # mass beyond them (< Φ(-8)) is assigned to the value below the first edge, the start entry
+        return start + np.tensordot(cdf, jumps, axes=([-1], [0]))
+    return start + np.tensordot(cdf, jumps, axes=([-1], [0]))
+
+
+def _bake_modulo(table: ColourTable, n_mu: int, n_sigma: int, sigma_max: float) -> np.ndarray:
+    n = table.n
+    entries = table.entries.astype(np.float64)
+    mu = (np.arange(n_mu) + 0.5) / n_mu
+    sigma = sigma_max * np.arange(n_sigma) / (n_sigma - 1)
+    k = np.arange(-2 * n, 2 * n + 1)
+    # Fourier coefficients of the piecewise-constant table: c_k = Σ_i c_i (1/n) sinc(k/n) e^{-2πik(i+1/2)/n}
+    phase = np.exp(-2j * np.pi * np.outer(k, np.arange(n) + 0.5) / n)
+    coefficients = (phase @ entries) * (np.sinc(k / n) / n)[:, None]
+    transfer = np.exp(-2.0 * np.pi**2 * np.outer(sigma, k) ** 2)
+    basis = np.exp(2j * np.pi * np.outer(k, mu))
+    out = np.empty((n_sigma, n_mu, 4))
+    for c in range(4):
+        out[:, :, c] = np.real((transfer * coefficients[None, :, c]) @ basis)
+    narrow = sigma < 1.0 / n  # the series is truncated at |k| = 2n: use the exact edge form there
+    if narrow.any():
+        out[narrow] = gaussian_average(table, mu[None, :], sigma[narrow, None])
+    return out
+
+
+def _bake_clamp(table: ColourTable, n_mu: int, n_sigma: int, sigma_max: float, lo: float, hi: float):
+    mu = lo + (np.arange(n_mu) + 0.5) * (hi - lo) / n_mu
+    sigma = sigma_max * np.arange(n_sigma) / (n_sigma - 1)
+    out = np.empty((n_sigma, n_mu, 4))
+    for j in range(n_sigma):  # row by row keeps memory at n_mu x n edges
+        out[j] = gaussian_average(table, mu, np.full(n_mu, sigma[j]))
+    return out
+
+
+def preconvolve(
+    table: ColourTable,
+    n_mu: int | None = None,
+    n_sigma: int = 256,
+    sigma_max: float = 1.0,
+    mu_range: tuple[float, float] = (-1.0, 2.0),
+) -> PreconvolvedMap:
+    """Bake C̄(μ, σ) for a (premultiplied) colour table; cached by content hash."""
+    if table.wrap == "modulo":
+        n_mu = n_mu or 256
+        lo, hi = 0.0, 1.0
+    else:
+        lo, hi = mu_range
+        n_mu = n_mu or int(round(256 * (hi - lo)))
+    params = {
+        "version": BAKE_VERSION,
+        "wrap": table.wrap,
+        "n_mu": n_mu,
+        "n_sigma": n_sigma,
+        "sigma_max": sigma_max,
+        "mu_range": [lo, hi],
+    }
+
+    def compute() -> np.ndarray:
+        if table.wrap == "modulo":
+            data = _bake_modulo(table, n_mu, n_sigma, sigma_max)
+        else:
+            data = _bake_clamp(table, n_mu, n_sigma, sigma_max, lo, hi)
+        return data.astype(np.float32)
+
+    data = cached("preconvolved", params, (table.entries,), compute)
+    return PreconvolvedMap(data, table.wrap, sigma_max, (lo, hi))
