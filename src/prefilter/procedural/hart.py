@@ -158,6 +158,32 @@ class HartMaterial:
         return f, grad
 
 
+def driver_gaussian(
+    material: HartMaterial, s: np.ndarray, dsdx: np.ndarray, dsdy: np.ndarray, t: float = 0.0
+):
+    """NumPy twin of pt_driverGaussian: (μ, σ_lin², σ_res²) of f over box footprints spanned by dsdx, dsdy."""
+    from prefilter.procedural.noise_stats import fit_split, noise_stats, split_fit
+
+    stats = noise_stats()
+    fits = fit_split(stats)
+    s = np.asarray(s, np.float64)
+    s4 = np.concatenate([s, np.ones(s.shape[:-1] + (1,))], axis=-1)
+    qs = s4 @ material.quadric
+    mu = np.einsum("...i,...i->...", s4, qs)
+    grad = 2.0 * qs[..., :3]
+    residual = np.zeros(s.shape[:-1])
+    for term in material.terms:
+        jx, jy = dsdx @ term.matrix.T, dsdy @ term.matrix.T
+        beta, gamma, lam = split_fit(fits, np.linalg.norm(jx, axis=-1), np.linalg.norm(jy, axis=-1))
+        value, dn = perlin_noise_grad(s @ term.matrix.T + term.offset_at(t))
+        mu = mu + term.amplitude * beta * value
+        grad = grad + term.amplitude * gamma[..., None] * (dn @ term.matrix)
+        residual = residual + term.amplitude**2 * lam
+    gx = np.einsum("...i,...i->...", grad, dsdx)
+    gy = np.einsum("...i,...i->...", grad, dsdy)
+    return mu, (gx**2 + gy**2) / 12.0, residual * stats.variance
+
+
 def quadric_matrix(coefficients: np.ndarray) -> np.ndarray:
     """Eq. (4): the symmetric matrix of q = As^2 + 2Bst + 2Csr + 2Ds + Et^2 + 2Ftr + 2Gt + Hr^2 + 2Ir + J."""
     a, b, c, d, e, f, g, h, i, j = coefficients
