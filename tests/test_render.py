@@ -9,7 +9,7 @@ import pytest
 from prefilter.cli import main
 from prefilter.gl.context import gl_context
 from prefilter.gl.program import ShaderError, build_program
-from prefilter.gl.render import REFERENCE, Renderer, composite, coverage_mask, scene_modes
+from prefilter.gl.render import REFERENCE, Renderer, RenderOptions, composite, coverage_mask, scene_modes
 from prefilter.images import read_image
 from prefilter.scene import preset_names, resolve_scene
 
@@ -143,3 +143,20 @@ def test_compare_command_writes_report(tmp_path):
         assert set(entry) >= {"flip", "delta_e", "rmse", "ms"}
     for name in ("strip.png", "flip.png", "report.md", "reference.exr", "hart-width.png"):
         assert (out / name).is_file()
+
+
+def test_quantisation_and_reduced_model_change_the_image():
+    scene = resolve_scene("marble-teapot")
+    images = {}
+    for key, options in {
+        "full": None,
+        "q6": RenderOptions(quant_bits=6),
+        "reduced": RenderOptions(reduced=True),
+    }.items():
+        renderer = Renderer(scene, SMALL, options=options)
+        try:
+            images[key] = renderer.render("hart-sat")
+        finally:
+            renderer.release()
+    assert np.abs(images["q6"] - images["full"]).mean() > 1e-3
+    assert np.abs(images["reduced"] - images["full"]).mean() > 1e-3

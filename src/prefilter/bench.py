@@ -33,12 +33,9 @@ FLIGHT_PRESET = "seascape"
 
 
 def _scaled_texture(scene: Scene, factor: float) -> Scene:
-    objects = []
-    for obj in scene.objects:
-        solid = obj.material.solid_from_object.copy()
-        solid[:3, :] *= factor
-        objects.append(replace(obj, material=replace(obj.material, solid_from_object=solid)))
-    return replace(scene, objects=objects)
+    return replace(
+        scene, objects=[replace(obj, material=obj.material.scaled(factor)) for obj in scene.objects]
+    )
 
 
 def bench_preset(scene: Scene, size, spp: int, frames: int) -> dict:

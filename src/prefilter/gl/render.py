@@ -79,14 +79,8 @@ class _GPUObject:
         self.ctx, self.obj, self.mesh, self.target, self.options = ctx, obj, mesh, target, options
         self.vbo = ctx.buffer(np.ascontiguousarray(mesh.interleaved(), dtype=np.float32).tobytes())
         self.ibo = ctx.buffer(np.ascontiguousarray(mesh.indices, dtype=np.uint32).tobytes())
-        self.resources = obj.material.upload(ctx)
+        self.resources = obj.material.upload(ctx, mesh)
         self.programs: dict[str, tuple[moderngl.Program, moderngl.VertexArray]] = {}
-        solid = obj.material.solid_from_object
-        lo, hi = mesh.bounds()
-        corners = np.array(
-            [[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
-        )
-        self.solid_extent = float(np.abs(corners @ solid.T)[:, :3].max())
 
     def program(self, mode: str) -> tuple[moderngl.Program, moderngl.VertexArray]:
         if mode not in self.programs:
@@ -173,12 +167,7 @@ class Renderer:
                 prog["u_worldNormalFromObject"].write(
                     np.ascontiguousarray(normal.T, dtype=np.float32).tobytes()
                 )
-            _set(prog, "u_solidFromObject", _mat4(obj.material.solid_from_object))
             _set(prog, "u_jitter", jitter)
-            step = 0.0
-            if self.options.quant_bits:
-                step = 2.0 * gpu.solid_extent / 2.0**self.options.quant_bits
-            _set(prog, "u_quantStep", step)
             _set(prog, "sh_lit", int(obj.lit))
             _set(prog, "sh_ambient", scene.ambient if scene.lights else 1.0)
             _set(prog, "sh_lightCount", len(scene.lights))

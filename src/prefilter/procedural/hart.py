@@ -24,7 +24,7 @@ At most 8 noise terms (the paper's hardware limit).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import moderngl
@@ -62,6 +62,7 @@ class HartResources:
     table: TableTextures
     gaussian: moderngl.Texture
     gaussian_range: tuple[float, float, float]  # (μ lo, μ hi, σ max) of the preconvolved map
+    solid_extent: float  # max |s| over the mesh's bounding box (scale of the §4.3 quantisation)
 
     def release(self) -> None:
         self.table.release()
@@ -98,12 +99,23 @@ class HartMaterial:
             defines["PT_REDUCED"] = True
         return defines
 
-    def upload(self, ctx) -> HartResources:
+    def scaled(self, factor: float) -> HartMaterial:
+        """The same material with its solid texture `factor` times finer (as if seen from that far)."""
+        solid = self.solid_from_object.copy()
+        solid[:3, :] *= factor
+        return replace(self, solid_from_object=solid)
+
+    def upload(self, ctx, mesh) -> HartResources:
         """Colour tables go up premultiplied: filtering must average premultiplied colour."""
         table = self.table.premultiplied()
         gaussian = preconvolve(table, **self.gaussian)
+        lo, hi = mesh.bounds()
+        corners = np.array(
+            [[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+        )
+        extent = float(np.abs(corners @ self.solid_from_object.T)[:, :3].max())
         return HartResources(
-            table.upload(ctx), gaussian.upload(ctx), (*gaussian.mu_range, gaussian.sigma_max)
+            table.upload(ctx), gaussian.upload(ctx), (*gaussian.mu_range, gaussian.sigma_max), extent
         )
 
     def release(self, resources: HartResources) -> None:
@@ -125,6 +137,13 @@ class HartMaterial:
             prog["u_wrap"].value = textures.wrap_code
         if "u_gaussianRange" in prog:
             prog["u_gaussianRange"].value = resources.gaussian_range
+        if "u_solidFromObject" in prog:
+            prog["u_solidFromObject"].write(
+                np.ascontiguousarray(self.solid_from_object.T, np.float32).tobytes()
+            )
+        if "u_quantStep" in prog:  # Hart §4.3: B bits over the object's solid-coordinate extent
+            bits = options.quant_bits
+            prog["u_quantStep"].value = 2.0 * resources.solid_extent / 2.0**bits if bits else 0.0
         if "pt_quadric" in prog:
             prog["pt_quadric"].write(np.ascontiguousarray(self.quadric.T, dtype=np.float32).tobytes())
         count = self.defines(options)["PT_TERM_COUNT"]
