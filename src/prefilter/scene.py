@@ -279,7 +279,8 @@ def parse_scene(text: str, source: str, base_dir: Path) -> Scene:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{source}: TOML syntax error: {exc}") from None
-    import prefilter.procedural.hart  # noqa: F401  (registers the material types)
+    import prefilter.colormap.tabulated  # noqa: F401  (registers the material types)
+    import prefilter.procedural.hart  # noqa: F401
 
     top = Reader(data, "", source)
     name = top.string("name", Path(source).stem)

@@ -345,3 +345,26 @@ def _trapezoid_cdf(u: np.ndarray, a: float, b: float) -> np.ndarray:
 def _check_size(n: object) -> None:
     if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 2 or (int(n) & (int(n) - 1)):
         raise PrefilterError(f"colour table size must be a power of two >= 2, got {n!r}")
+
+
+def parse_colour_table(r) -> ColourTable:
+    """A [colour_table] scene table (a scene.Reader): wrap, size, interpolation, stops."""
+    stops = r.raw("stops")
+    if not isinstance(stops, list) or not stops:
+        raise r.fail("stops", "expected a list of [position, colour] pairs")
+    pairs = []
+    for i, stop in enumerate(stops):
+        if not (isinstance(stop, list) and len(stop) == 2 and isinstance(stop[0], int | float)):
+            raise r.fail(f"stops[{i}]", f"expected [position, colour], got {stop!r}")
+        pairs.append((float(stop[0]), stop[1]))
+    try:
+        table = ColourTable.from_stops(
+            pairs,
+            n=r.integer("size", 256, lo=2, hi=4096),
+            wrap=r.string("wrap", "modulo", choices=("modulo", "clamp")),
+            interpolation=r.string("interpolation", "linear", choices=("linear", "step")),
+        )
+    except PrefilterError as exc:
+        raise r.fail("stops", str(exc)) from None
+    r.finish()
+    return table

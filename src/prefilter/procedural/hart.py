@@ -31,7 +31,7 @@ import moderngl
 import numpy as np
 
 from prefilter.colormap.gaussian import preconvolve
-from prefilter.colormap.table import ColourTable, TableTextures
+from prefilter.colormap.table import ColourTable, TableTextures, parse_colour_table
 from prefilter.procedural.noise import linear_noise_grad, perlin_noise_grad
 from prefilter.scene import Reader, register_material
 
@@ -251,27 +251,3 @@ def parse_hart(r: Reader, base_dir: Path) -> HartMaterial:
     assert tr is not None
     table = parse_colour_table(tr)
     return HartMaterial(quadric, terms, table, solid)
-
-
-def parse_colour_table(r: Reader) -> ColourTable:
-    from prefilter import PrefilterError
-
-    stops = r.raw("stops")
-    if not isinstance(stops, list) or not stops:
-        raise r.fail("stops", "expected a list of [position, colour] pairs")
-    pairs = []
-    for i, stop in enumerate(stops):
-        if not (isinstance(stop, list) and len(stop) == 2 and isinstance(stop[0], int | float)):
-            raise r.fail(f"stops[{i}]", f"expected [position, colour], got {stop!r}")
-        pairs.append((float(stop[0]), stop[1]))
-    try:
-        table = ColourTable.from_stops(
-            pairs,
-            n=r.integer("size", 256, lo=2, hi=65536),
-            wrap=r.string("wrap", "modulo", choices=("modulo", "clamp")),
-            interpolation=r.string("interpolation", "linear", choices=("linear", "step")),
-        )
-    except PrefilterError as exc:
-        raise r.fail("stops", str(exc)) from None
-    r.finish()
-    return table

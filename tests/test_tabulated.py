@@ -1,0 +1,72 @@
+"""Tabulated drivers (Heitz et al. §4.2): MIP moments give the variance of the covered texels."""
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+
+from prefilter import PrefilterError
+from prefilter.colormap.tabulated import moment_pyramid, read_driver
+from prefilter.gl.context import gl_context
+from prefilter.gl.evaluate import glsl_eval
+from prefilter.scene import SceneError, load_scene, resolve_scene
+
+
+def test_moment_pyramid_variance_is_the_variance_of_the_covered_texels():
+    f = np.random.default_rng(2).gamma(2.0, 0.2, size=(64, 32))  # skewed, not Gaussian
+    levels = moment_pyramid(f)
+    assert len(levels) == 7 and levels[-1].shape == (1, 1, 2)
+    for data in levels:
+        by, bx = f.shape[0] // data.shape[0], f.shape[1] // data.shape[1]
+        blocks = f.reshape(data.shape[0], by, data.shape[1], bx)
+        np.testing.assert_allclose(data[..., 0], blocks.mean(axis=(1, 3)), atol=1e-12)
+        np.testing.assert_allclose(data[..., 1] - data[..., 0] ** 2, blocks.var(axis=(1, 3)), atol=1e-12)
+
+
+def test_gpu_moment_texture_holds_the_pyramid():
+    scene = resolve_scene("terrain-data")
+    material = scene.objects[0].material
+    resources = material.upload(gl_context(), mesh=None)
+    try:
+        levels = moment_pyramid(material.driver)
+        texture = resources.driver
+        for level in (0, 3, 6):
+            h, w = levels[level].shape[:2]
+            ij = np.random.default_rng(level).integers(0, [w, h], size=(50, 2))
+            got = glsl_eval(
+                f"texelFetch(driver, ivec2(ij), {level}).xy",
+                {"ij": ij},
+                2,
+                prelude="uniform sampler2D driver;",
+                textures={"driver": texture},
+            )
+            want = levels[level][ij[:, 1], ij[:, 0]]
+            np.testing.assert_allclose(got, want, rtol=1e-6, atol=1e-7)
+            variance = got[:, 1] - got[:, 0] ** 2
+            np.testing.assert_allclose(variance, want[:, 1] - want[:, 0] ** 2, atol=1e-5)
+    finally:
+        resources.release()
+
+
+def test_read_driver_errors(tmp_path):
+    odd = tmp_path / "odd.png"
+    iio.imwrite(odd, np.zeros((30, 32), np.uint8))
+    with pytest.raises(PrefilterError, match="powers of two"):
+        read_driver(odd)
+    garbage = tmp_path / "bad.png"
+    garbage.write_bytes(b"not an image")
+    with pytest.raises(PrefilterError, match="cannot read driver image"):
+        read_driver(garbage)
+    ok = tmp_path / "ok.png"
+    iio.imwrite(ok, np.full((8, 16), 65535, np.uint16))
+    np.testing.assert_array_equal(read_driver(ok), np.ones((8, 16)))
+
+
+def test_scene_names_the_missing_image(tmp_path):
+    scene = tmp_path / "s.toml"
+    scene.write_text(
+        '[camera]\neye = [0.0, 1.0, 3.0]\ntarget = [0.0, 0.0, 0.0]\n[[object]]\nshape = "plane"\n'
+        '[object.material]\ntype = "tabulated"\nimage = "nowhere.png"\n'
+        '[object.material.colour_table]\nstops = [[0.0, "#000000"], [1.0, "#ffffff"]]\n'
+    )
+    with pytest.raises(SceneError, match=r"object\[0\]\.material\.image: file not found"):
+        load_scene(scene)
