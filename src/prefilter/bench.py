@@ -30,6 +30,7 @@ FAR_SCALE = 16.0
 QUANT_BITS = (6, 8, 10, 12, 16)
 STUDY_PRESETS = ("wood-teapot", "marble-teapot", "planet")
 FLIGHT_PRESET = "seascape"
+DISTANCE_PRESET = "noise-plane"
 
 
 def _scaled_texture(scene: Scene, factor: float) -> Scene:
@@ -210,6 +211,58 @@ def flicker_study(scene: Scene, size, spp: int, count: int = 12, span: float = 0
     return out
 
 
+def centre_distance(scene: Scene, t: float) -> float:
+    """Distance from the eye to the ground plane y = 0 along the view's centre ray (inf if it misses)."""
+    camera = scene.camera.at(t)
+    direction = (camera.target - camera.eye) / np.linalg.norm(camera.target - camera.eye)
+    return float(camera.eye[1] / -direction[1]) if direction[1] < 0 else float("inf")
+
+
+def distance_study(scene: Scene, size, spp: int, plot_path: Path | None, count: int = 10) -> dict:
+    """Error against viewing distance: the camera turns from the ground at its feet to the horizon
+    (the scene's camera path); FLIP of every mode per frame, plotted against the centre-ray distance."""
+    modes = [m for m in scene_modes(scene) if m != "hart-mip-aniso"]
+    renderer = Renderer(scene, size)
+    rows = []
+    try:
+        for k in range(count):
+            t = k / (count - 1)
+            ref = renderer.reference(spp, t)
+            mask = coverage_mask(ref)
+            ref_rgb = composite(ref, scene.background)
+            row = {"t": t, "distance": centre_distance(scene, t)}
+            for mode in modes:
+                row[mode] = float(
+                    compare(composite(renderer.render(mode, t), scene.background), ref_rgb, mask)["flip"]
+                )
+            rows.append(row)
+    finally:
+        renderer.release()
+    if plot_path is not None:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        finite = [r for r in rows if np.isfinite(r["distance"])]
+        fig, ax = plt.subplots(figsize=(7, 4.2), dpi=120)
+        for mode in modes:
+            ax.plot([r["distance"] for r in finite], [r[mode] for r in finite], marker="o", ms=3, label=mode)
+        ax.set_xscale("log")
+        ax.set_xlabel("distance to the ground along the view's centre ray")
+        ax.set_ylabel(f"mean FLIP against {spp}-spp reference")
+        ax.set_title(f"{scene.name}: error against viewing distance")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        plot_path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = plot_path.with_name(f".{plot_path.name}.tmp.png")
+        fig.savefig(tmp)
+        plt.close(fig)
+        os.replace(tmp, plot_path)
+    return {"rows": rows, "plot": str(plot_path) if plot_path else None}
+
+
 def run_bench(
     names: list[str],
     json_path: str | None = None,
@@ -217,6 +270,7 @@ def run_bench(
     spp: int = 1024,
     frames: int = 7,
     quick: bool = False,
+    plots: str | None = "out/bench",
 ) -> int:
     from rich.console import Console
     from rich.table import Table
@@ -271,6 +325,9 @@ def run_bench(
         }
     if FLIGHT_PRESET in names:
         studies["flicker"] = flicker_study(resolve_scene(FLIGHT_PRESET), size, min(spp, 256))
+    if DISTANCE_PRESET in names:
+        plot = Path(plots) / "error-vs-distance.png" if plots else None
+        studies["distance"] = distance_study(resolve_scene(DISTANCE_PRESET), size, min(spp, 256), plot)
     results["studies"] = studies
     if studies:
         console.print_json(json.dumps(studies))

@@ -111,7 +111,13 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from prefilter.bench import run_bench
 
     return run_bench(
-        args.names, json_path=args.json, size=args.size, spp=args.spp, frames=args.frames, quick=args.quick
+        args.names,
+        json_path=args.json,
+        size=args.size,
+        spp=args.spp,
+        frames=args.frames,
+        quick=args.quick,
+        plots=args.plots,
     )
 
 
@@ -173,6 +179,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--spp", type=_positive, default=1024, help="reference samples per pixel (default 1024)")
     p.add_argument("--frames", type=_positive, default=7, help="frames per timing median (default 7, min 5)")
     p.add_argument("--quick", action="store_true", help="small sizes and spp: a smoke run, not a measurement")
+    p.add_argument("--plots", default="out/bench", help="directory for the error-vs-distance plot")
     p.set_defaults(func=cmd_bench)
     return parser
 
