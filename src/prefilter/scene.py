@@ -26,6 +26,12 @@ class SceneError(PrefilterError):
     """Invalid scene file: the message is `file: key.path: what was expected`."""
 
 
+def _bounds(lo: float | None, hi: float | None) -> str:
+    if lo is not None and hi is not None:
+        return f"in [{lo}, {hi}]"
+    return f">= {lo}" if lo is not None else f"<= {hi}"
+
+
 class Reader:
     """Typed access to a TOML table that reports `file: key.path: problem` on bad input."""
 
@@ -61,7 +67,7 @@ class Reader:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise self.fail(key, f"expected a number, got {value!r}")
         if (lo is not None and value < lo) or (hi is not None and value > hi):
-            raise self.fail(key, f"expected a number in [{lo}, {hi}], got {value!r}")
+            raise self.fail(key, f"expected a number {_bounds(lo, hi)}, got {value!r}")
         return float(value)
 
     def integer(
@@ -77,7 +83,7 @@ class Reader:
         if isinstance(value, bool) or not isinstance(value, int):
             raise self.fail(key, f"expected an integer, got {value!r}")
         if (lo is not None and value < lo) or (hi is not None and value > hi):
-            raise self.fail(key, f"expected an integer in [{lo}, {hi}], got {value!r}")
+            raise self.fail(key, f"expected an integer {_bounds(lo, hi)}, got {value!r}")
         return value
 
     def boolean(self, key: str, default: bool = False) -> bool:

@@ -19,7 +19,9 @@ that grows with σ (documented limit).
 Bake: modulo tables by the exact Fourier series of the piecewise-constant table times the Gaussian's
 transfer function exp(−2π²σ²k²), |k| <= 2 n (exact to 1e-15 for σ >= 1/n); narrower σ and all clamp
 tables by the edge form C̄ = c_last + Σ_e (c_{e−1} − c_e) Φ((x_e − μ)/σ) over the entry edges x_e.
-Defaults: 256 x 256 (modulo), 256 per table period in μ (clamp), sigma_max = 1, mu_range = (-1, 2).
+Defaults: 256 x 256 (modulo), 256 per table period in μ (clamp), sigma_max = 1, mu_range = (-1, 2);
+a material's [object.material.preconvolved] table overrides them (size = [n_mu, n_sigma], sigma_max,
+mu_range).
 """
 
 from __future__ import annotations
@@ -175,3 +177,25 @@ def preconvolve(
 
     data = cached("preconvolved", params, (table.entries,), compute)
     return PreconvolvedMap(data, table.wrap, sigma_max, (lo, hi))
+
+
+def parse_preconvolve_options(r) -> dict:
+    """The optional [...preconvolved] table of a material (a scene.Reader or None): size = [n_mu, n_sigma],
+    sigma_max, mu_range = [lo, hi] (clamp tables)."""
+    if r is None:
+        return {}
+    options: dict = {}
+    if r.has("size"):
+        size = r.vector("size", 2)
+        if any(v < 2 or v > 4096 or v != int(v) for v in size):
+            raise r.fail("size", f"expected two integers in [2, 4096], got {list(size)}")
+        options["n_mu"], options["n_sigma"] = int(size[0]), int(size[1])
+    if r.has("sigma_max"):
+        options["sigma_max"] = r.number("sigma_max", lo=1e-6)
+    if r.has("mu_range"):
+        lo, hi = r.vector("mu_range", 2)
+        if hi <= lo:
+            raise r.fail("mu_range", f"expected [lo, hi] with lo < hi, got {[lo, hi]}")
+        options["mu_range"] = (float(lo), float(hi))
+    r.finish()
+    return options

@@ -11,7 +11,8 @@ Modes: `point` (f reconstructed bilinearly at level 0, then c(f): what the refer
 
 Scene TOML (type = "tabulated"): image = "file.png|.exr" (first channel, PNG 8/16-bit read as [0, 1];
 power-of-two sides), uv_scale = [su, sv] (repeats over the mesh's uvs), value_scale, value_offset
-(f = offset + scale x image), [object.material.colour_table] as for Hart's model.
+(f = offset + scale x image), [object.material.colour_table] and [object.material.preconvolved] as for
+Hart's model.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import moderngl
 import numpy as np
 
 from prefilter import PrefilterError
-from prefilter.colormap.gaussian import preconvolve
+from prefilter.colormap.gaussian import parse_preconvolve_options, preconvolve
 from prefilter.colormap.table import ColourTable, TableTextures, parse_colour_table
 from prefilter.scene import Reader, register_material
 
@@ -162,5 +163,9 @@ def parse_tabulated(r: Reader, base_dir: Path) -> TabulatedMaterial:
     tr = r.child("colour_table", required=True)
     assert tr is not None
     return TabulatedMaterial(
-        driver, parse_colour_table(tr), r.vector("uv_scale", 2, default=[1.0, 1.0]), str(image)
+        driver,
+        parse_colour_table(tr),
+        r.vector("uv_scale", 2, default=[1.0, 1.0]),
+        str(image),
+        parse_preconvolve_options(r.child("preconvolved")),
     )

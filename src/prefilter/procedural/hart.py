@@ -19,6 +19,7 @@ Scene TOML (under [object.material], type = "hart"):
                              i = first .. first+octaves-1 (eqs. 6-8)
   [object.material.colour_table]  wrap = "modulo"|"clamp", size = 256, interpolation = "linear"|"step",
                              stops = [[position, "#rrggbb" or "#rrggbbaa"], ...]
+  [object.material.preconvolved]  size = [n_mu, n_sigma], sigma_max, mu_range (the gaussian mode's bake)
 At most 8 noise terms (the paper's hardware limit).
 """
 
@@ -30,7 +31,7 @@ from pathlib import Path
 import moderngl
 import numpy as np
 
-from prefilter.colormap.gaussian import preconvolve
+from prefilter.colormap.gaussian import parse_preconvolve_options, preconvolve
 from prefilter.colormap.table import ColourTable, TableTextures, parse_colour_table
 from prefilter.procedural.noise import linear_noise_grad, perlin_noise_grad
 from prefilter.scene import Reader, register_material
@@ -250,4 +251,4 @@ def parse_hart(r: Reader, base_dir: Path) -> HartMaterial:
     tr = r.child("colour_table", required=True)
     assert tr is not None
     table = parse_colour_table(tr)
-    return HartMaterial(quadric, terms, table, solid)
+    return HartMaterial(quadric, terms, table, solid, parse_preconvolve_options(r.child("preconvolved")))
