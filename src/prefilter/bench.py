@@ -95,11 +95,12 @@ def bench_preset(scene: Scene, size, spp: int, frames: int) -> dict:
 
 
 def equal_time_study(scene: Scene, size, spp: int, metrics: dict, result) -> dict:
-    """Gaussian against point supersampling that costs the same: N x N passes, N² <= t_gaussian / t_point."""
+    """Gaussian against regular point supersampling that costs the same: N x N passes at stratum centres,
+    N² <= t_gaussian / t_point (N = 1 is `point` itself)."""
     n = max(1, int(np.floor(np.sqrt(metrics["gaussian"]["ms"] / metrics["point"]["ms"]))))
     renderer = Renderer(scene, size)
     try:
-        supersampled = composite(renderer.reference(n * n, seed=1), scene.background)
+        supersampled = composite(renderer.reference(n * n, jitter=False), scene.background)
         ms = renderer.time_reference(n * n)
     finally:
         renderer.release()

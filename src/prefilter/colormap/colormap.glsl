@@ -84,16 +84,17 @@ vec4 cm_point(sampler2D table, float f, int wrapMode) {
 vec4 cm_mip(sampler2D mipTable, float f, float width, int wrapMode) {
     float n = float(textureSize(mipTable, 0).x);
     float w = abs(width);
-    if (wrapMode != CM_CLAMP) {  // the texture repeats; one period keeps texture-coordinate precision
-        return textureLod(mipTable, vec2(f - floor(f), 0.5), log2(max(w * n, 1.0)));
-    }
+    bool clampTable = wrapMode == CM_CLAMP;
     // clamp: the parts of the footprint beyond the ends take the edge entries and the MIP map filters
     // only the part inside [0, 1]; a coarse level alone would mix the edge entry with its whole block.
-    float ia = clamp(f - 0.5 * w, 0.0, 1.0);
-    float ib = clamp(f + 0.5 * w, 0.0, 1.0);
+    // The lookup itself stays outside any branch (llvmpipe samples slowly under divergent control flow).
+    float ia = clampTable ? clamp(f - 0.5 * w, 0.0, 1.0) : f - 0.5 * w;
+    float ib = clampTable ? clamp(f + 0.5 * w, 0.0, 1.0) : f + 0.5 * w;
     float inside = ib - ia;
-    vec4 mid = textureLod(mipTable, vec2(0.5 * (ia + ib), 0.5), log2(max(inside * n, 1.0)));
-    if (inside >= w) {
+    float centre = 0.5 * (ia + ib);
+    centre = clampTable ? centre : centre - floor(centre);  // one period keeps coordinate precision
+    vec4 mid = textureLod(mipTable, vec2(centre, 0.5), log2(max(inside * n, 1.0)));
+    if (!clampTable || inside >= w) {
         return mid;
     }
     float below = clamp(0.5 * w - f, 0.0, w);
@@ -126,25 +127,27 @@ vec4 cm_sat(sampler2D sat, float f, float width, int wrapMode) {
     float fn = float(textureSize(sat, 0).x - 3);
     float w = max(abs(width) * fn, 1.0);  // texels; never below one entry (float32 sums, as MIP level 0)
     float x = fn * f;                     // exact: n is a power of two
-    vec4 sum;
-    if (wrapMode == CM_CLAMP) {  // the parts beyond the ends weighted by clut[0] and clut[n-1]
-        float a = x - 0.5 * w;
-        float b = x + 0.5 * w;
-        vec4 first = texelFetch(sat, ivec2(int(fn) + 1, 0), 0);
-        vec4 last = texelFetch(sat, ivec2(int(fn) + 2, 0), 0);
+    bool clampTable = wrapMode == CM_CLAMP;
+    x = clampTable ? x : x - fn * floor(x / fn);  // modulo: one period, for float32 precision
+    float a = x - 0.5 * w;
+    float b = x + 0.5 * w;
+    // modulo: I(y) = floor(y / n) S[n] + S(y mod n), the integral of the periodic table;
+    // clamp: S(clamp(y, 0, n)) plus the lengths beyond the ends weighted by clut[0] and clut[n-1].
+    // The filtered fetches stay outside any branch (llvmpipe samples slowly under divergent flow).
+    float qa = clampTable ? 0.0 : floor(a / fn);
+    float qb = clampTable ? 0.0 : floor(b / fn);
+    float ya = clampTable ? clamp(a, 0.0, fn) : a - qa * fn;
+    float yb = clampTable ? clamp(b, 0.0, fn) : b - qb * fn;
+    vec4 sum = cm_satAt(sat, yb, fn) - cm_satAt(sat, ya, fn);
+    vec4 total = texelFetch(sat, ivec2(int(fn), 0), 0);
+    if (clampTable) {
         float below = clamp(0.5 * w - x, 0.0, w);  // lengths beyond the ends, exact far from the table
         float above = clamp(x + 0.5 * w - fn, 0.0, w);
-        sum = cm_satAt(sat, clamp(b, 0.0, fn), fn) - cm_satAt(sat, clamp(a, 0.0, fn), fn)
-            + below * first + above * last;
-    } else {  // I(y) = floor(y / n) S[n] + S(y mod n), the integral of the periodic table
-        x -= fn * floor(x / fn);  // one period, for float32 precision
-        float a = x - 0.5 * w;
-        float b = x + 0.5 * w;
-        float qa = floor(a / fn);
-        float qb = floor(b / fn);
-        vec4 total = texelFetch(sat, ivec2(int(fn), 0), 0);
-        sum = (qb - qa) * total + cm_satAt(sat, b - qb * fn, fn) - cm_satAt(sat, a - qa * fn, fn);
-        sum = w >= fn ? total * (w / fn) : sum;  // Hart: w >= N returns the whole-table average
+        vec4 first = texelFetch(sat, ivec2(int(fn) + 1, 0), 0);
+        vec4 last = texelFetch(sat, ivec2(int(fn) + 2, 0), 0);
+        sum += below * first + above * last;
+    } else {
+        sum = w >= fn ? total * (w / fn) : sum + (qb - qa) * total;  // Hart: w >= N, the table mean
     }
     return sum / w;
 }

@@ -26,6 +26,7 @@ import numpy as np
 from prefilter import PrefilterError
 from prefilter.colormap.gaussian import parse_preconvolve_options, preconvolve
 from prefilter.colormap.table import ColourTable, TableTextures, parse_colour_table
+from prefilter.gl.uniforms import bind_samplers, set_uniforms
 from prefilter.scene import Reader, register_material
 
 SHADER_DIR = Path(__file__).resolve().parent
@@ -130,23 +131,22 @@ class TabulatedMaterial:
         resources.release()
 
     def bind(self, prog, resources: TabulatedResources, t: float, options) -> None:
-        samplers = (
-            ("u_tablePoint", resources.table.point),
-            ("u_tableGaussian", resources.gaussian),
-            ("u_driver", resources.driver),
+        bind_samplers(
+            prog,
+            {
+                "u_tablePoint": resources.table.point,
+                "u_tableGaussian": resources.gaussian,
+                "u_driver": resources.driver,
+            },
         )
-        for unit, (name, texture) in enumerate(samplers):
-            if name in prog:
-                texture.use(location=unit)
-                prog[name].value = unit
-        values = {
-            "u_wrap": resources.table.wrap_code,
-            "u_gaussianRange": resources.gaussian_range,
-            "u_uvScale": tuple(float(v) for v in self.uv_scale),
-        }
-        for name, value in values.items():
-            if name in prog:
-                prog[name].value = value
+        set_uniforms(
+            prog,
+            {
+                "u_wrap": resources.table.wrap_code,
+                "u_gaussianRange": resources.gaussian_range,
+                "u_uvScale": tuple(float(v) for v in self.uv_scale),
+            },
+        )
 
 
 @register_material("tabulated")

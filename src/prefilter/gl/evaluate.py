@@ -11,6 +11,7 @@ import numpy as np
 
 from prefilter.gl.context import gl_context
 from prefilter.gl.program import build_program
+from prefilter.gl.uniforms import bind_samplers, set_uniforms
 
 _GLSL_TYPES = {1: "float", 2: "vec2", 3: "vec3", 4: "vec4"}
 
@@ -53,16 +54,8 @@ def glsl_eval(
     )
     fragment = "out vec4 fragColor;\nvoid main() { fragColor = vec4(0.0); }\n"
     program = build_program(ctx, source, fragment, target=target, defines=defines, varyings=("result",))
-    for name, value in (uniforms or {}).items():
-        if name in program:
-            if isinstance(value, np.ndarray):  # matrices and arrays: raw column-major float32 bytes
-                program[name].write(np.ascontiguousarray(value, dtype=np.float32).tobytes())
-            else:
-                program[name].value = value
-    for unit, (name, texture) in enumerate((textures or {}).items()):
-        texture.use(location=unit)
-        if name in program:
-            program[name].value = unit
+    set_uniforms(program, uniforms or {})
+    bind_samplers(program, textures or {})
     present = [name for name in columns if name in program]  # the compiler drops unused inputs
     data = np.hstack([columns[name] for name in present]) if present else np.zeros((n, 1), np.float32)
     vbo = ctx.buffer(np.ascontiguousarray(data, dtype=np.float32).tobytes())

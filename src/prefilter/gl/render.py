@@ -24,6 +24,7 @@ from prefilter import PrefilterError
 from prefilter.geometry import Mesh, load_mesh, make_primitive
 from prefilter.gl.context import gl_context
 from prefilter.gl.program import build_program
+from prefilter.gl.uniforms import set_uniforms
 from prefilter.scene import Light, Scene, SceneObject
 
 BASE_MODES = ("point", "naive")
@@ -109,18 +110,6 @@ class _GPUObject:
         self.obj.material.release(self.resources)
 
 
-def _set(prog: moderngl.Program, name: str, value: object) -> None:
-    if name in prog:
-        if isinstance(value, bytes):
-            prog[name].write(value)
-        else:
-            prog[name].value = value
-
-
-def _mat4(m: np.ndarray) -> bytes:
-    return np.ascontiguousarray(m.T, dtype=np.float32).tobytes()
-
-
 class Renderer:
     """Renders one scene at one size; programs are compiled per (object, mode) on first use."""
 
@@ -161,25 +150,22 @@ class Renderer:
             obj = gpu.obj
             prog, vao = gpu.program(mode)
             world_from_object = obj.world_from_object
-            _set(prog, "u_clipFromObject", _mat4(clip_from_world @ world_from_object))
-            normal = np.linalg.inv(world_from_object[:3, :3]).T
-            if "u_worldNormalFromObject" in prog:
-                prog["u_worldNormalFromObject"].write(
-                    np.ascontiguousarray(normal.T, dtype=np.float32).tobytes()
-                )
-            _set(prog, "u_jitter", jitter)
-            _set(prog, "sh_lit", int(obj.lit))
-            _set(prog, "sh_ambient", scene.ambient if scene.lights else 1.0)
-            _set(prog, "sh_lightCount", len(scene.lights))
             lights = scene.lights[:4] + [Light(np.zeros(3), np.zeros(3))] * (4 - len(scene.lights[:4]))
-            if "sh_lightDirection" in prog:
-                prog["sh_lightDirection"].write(
-                    np.stack([x.direction for x in lights]).astype(np.float32).tobytes()
-                )
-            if "sh_lightColour" in prog:
-                prog["sh_lightColour"].write(
-                    np.stack([x.colour for x in lights]).astype(np.float32).tobytes()
-                )
+            set_uniforms(
+                prog,
+                {
+                    "u_clipFromObject": (clip_from_world @ world_from_object).T,  # column-major for GLSL
+                    "u_worldNormalFromObject": np.linalg.inv(
+                        world_from_object[:3, :3]
+                    ),  # (M^-1)^T, transposed
+                    "u_jitter": jitter,
+                    "sh_lit": int(obj.lit),
+                    "sh_ambient": scene.ambient if scene.lights else 1.0,
+                    "sh_lightCount": len(scene.lights),
+                    "sh_lightDirection": np.stack([x.direction for x in lights]),
+                    "sh_lightColour": np.stack([x.colour for x in lights]),
+                },
+            )
             obj.material.bind(prog, gpu.resources, t, self.options)
             if obj.double_sided:
                 ctx.disable(moderngl.CULL_FACE)
@@ -214,13 +200,16 @@ class Renderer:
         t: float = 0.0,
         seed: int = 0,
         progress: Callable[[int, int], None] | None = None,
+        jitter: bool = True,
     ) -> np.ndarray:
-        """Mean of N x N stratified jittered passes of the `point` appearance (N = round(sqrt(spp)))."""
+        """Mean of N x N stratified jittered passes of the `point` appearance (N = round(sqrt(spp))).
+
+        jitter=False places each pass at its stratum's centre (regular supersampling; N = 1 is `point`).
+        """
         n = max(1, round(math.sqrt(spp)))
         rng = np.random.default_rng(seed)
-        offsets = [
-            ((i + rng.random()) / n - 0.5, (j + rng.random()) / n - 0.5) for j in range(n) for i in range(n)
-        ]
+        u = (lambda: rng.random()) if jitter else (lambda: 0.5)
+        offsets = [((i + u()) / n - 0.5, (j + u()) / n - 0.5) for j in range(n) for i in range(n)]
         self.accum.use()
         self.ctx.clear(0.0, 0.0, 0.0, 0.0)
         for k, jitter in enumerate(offsets):

@@ -6,7 +6,10 @@
 //   MODE_HART_MIP_ANISO / MODE_HART_SAT_ANISO  the two screen axes of the footprint kept apart: the
 //                       linearised f over a box pixel is box(|df/dx|) * box(|df/dy|), a trapezoid
 //   MODE_HART_WIDTH     the filter width in table entries, log scale 1 (black) .. n (white), Fig. 9c
-//   MODE_GAUSSIAN       Heitz et al.'s preconvolved colour map at the footprint's (μ, σ) of f
+//   MODE_GAUSSIAN       Heitz et al.'s preconvolved colour map at the footprint's (μ, σ) of f. The linear
+//                       part of f over a box pixel is box(|g_x|) * box(|g_y|), flat-topped; two Gaussians
+//                       at μ ± g_major/4, each with the variance of its half (g_major²/48 + g_minor²/12
+//                       + σ_res²), follow it better than one where the gradient dominates (zone plate).
 //   MODE_GAUSSIAN_SIGMA diagnostic: (σ_lin, σ_res, 0), the linear (Hart) and unresolved-noise parts of σ
 // u_quantStep > 0 quantises solid coordinates to that step (Hart section 4.3, Fig. 10).
 
@@ -40,11 +43,15 @@ void main() {
 #elif defined(MODE_NAIVE)
     albedo = cm_point(u_tablePoint, pt_driverOctaveClamped(s, dsdx, dsdy), u_wrap);
 #elif defined(MODE_GAUSSIAN)
-    vec3 stats = pt_driverGaussian(s, dsdx, dsdy);
-    albedo = cm_gaussian(u_tableGaussian, stats.x, sqrt(stats.y + stats.z), u_wrap, u_gaussianRange);
+    vec4 stats = pt_driverGaussian(s, dsdx, dsdy);
+    float major = max(abs(stats.y), abs(stats.z));
+    float minor = min(abs(stats.y), abs(stats.z));
+    float sigma = sqrt(major * major / 48.0 + minor * minor / 12.0 + stats.w);
+    albedo = 0.5 * (cm_gaussian(u_tableGaussian, stats.x - 0.25 * major, sigma, u_wrap, u_gaussianRange)
+                  + cm_gaussian(u_tableGaussian, stats.x + 0.25 * major, sigma, u_wrap, u_gaussianRange));
 #elif defined(MODE_GAUSSIAN_SIGMA)
-    vec3 stats = pt_driverGaussian(s, dsdx, dsdy);
-    o_colour = vec4(sqrt(stats.y), sqrt(stats.z), 0.0, 1.0);
+    vec4 stats = pt_driverGaussian(s, dsdx, dsdy);
+    o_colour = vec4(sqrt((stats.y * stats.y + stats.z * stats.z) / 12.0), sqrt(stats.w), 0.0, 1.0);
     return;
 #else
     vec4 fg = pt_driverGrad(s);

@@ -94,9 +94,9 @@ vec3 pt_noiseSplit(vec3 jx, vec3 jy) {
     return vec3(b.x * b.y, g.x * g.y, 1.0 - h.x * h.y);
 }
 
-// (μ, σ_lin², σ_res²): the mean of f over the footprint, the variance of its linear part, and the
-// variance the unresolved noise leaves.
-vec3 pt_driverGaussian(vec3 s, vec3 dsdx, vec3 dsdy) {
+// (μ, g_x, g_y, σ_res²): the mean of f over the footprint, the screen gradient of its linear part
+// (variance (g_x² + g_y²) / 12 over a box pixel), and the variance the unresolved noise leaves.
+vec4 pt_driverGaussian(vec3 s, vec3 dsdx, vec3 dsdy) {
     vec4 s4 = vec4(s, 1.0);
     vec4 qs = pt_quadric * s4;
     float mu = dot(s4, qs);
@@ -113,7 +113,5 @@ vec3 pt_driverGaussian(vec3 s, vec3 dsdx, vec3 dsdy) {
         }
         residual += a * a * split.z;
     }
-    float gx = dot(grad, dsdx);
-    float gy = dot(grad, dsdy);
-    return vec3(mu, (gx * gx + gy * gy) / 12.0, residual * NS_VARIANCE);
+    return vec4(mu, dot(grad, dsdx), dot(grad, dsdy), residual * NS_VARIANCE);
 }

@@ -33,6 +33,7 @@ import numpy as np
 
 from prefilter.colormap.gaussian import parse_preconvolve_options, preconvolve
 from prefilter.colormap.table import ColourTable, TableTextures, parse_colour_table
+from prefilter.gl.uniforms import bind_samplers, set_uniforms
 from prefilter.procedural.noise import linear_noise_grad, perlin_noise_grad
 from prefilter.scene import Reader, register_material
 
@@ -124,43 +125,29 @@ class HartMaterial:
 
     def bind(self, prog, resources: HartResources, t: float, options) -> None:
         textures = resources.table
-        samplers = (
-            ("u_tablePoint", textures.point),
-            ("u_tableMip", textures.mip),
-            ("u_tableSat", textures.sat),
-            ("u_tableGaussian", resources.gaussian),
+        bind_samplers(
+            prog,
+            {
+                "u_tablePoint": textures.point,
+                "u_tableMip": textures.mip,
+                "u_tableSat": textures.sat,
+                "u_tableGaussian": resources.gaussian,
+            },
         )
-        for unit, (name, texture) in enumerate(samplers):
-            if name in prog:
-                texture.use(location=unit)
-                prog[name].value = unit
-        if "u_wrap" in prog:
-            prog["u_wrap"].value = textures.wrap_code
-        if "u_gaussianRange" in prog:
-            prog["u_gaussianRange"].value = resources.gaussian_range
-        if "u_solidFromObject" in prog:
-            prog["u_solidFromObject"].write(
-                np.ascontiguousarray(self.solid_from_object.T, np.float32).tobytes()
-            )
-        if "u_quantStep" in prog:  # Hart §4.3: B bits over the object's solid-coordinate extent
-            bits = options.quant_bits
-            prog["u_quantStep"].value = 2.0 * resources.solid_extent / 2.0**bits if bits else 0.0
-        if "pt_quadric" in prog:
-            prog["pt_quadric"].write(np.ascontiguousarray(self.quadric.T, dtype=np.float32).tobytes())
-        count = self.defines(options)["PT_TERM_COUNT"]
-        terms = self.terms[:count]
-        if terms and "pt_noiseMatrix" in prog:
-            prog["pt_noiseMatrix"].write(
-                np.stack([term.matrix.T for term in terms]).astype(np.float32).tobytes()
-            )
-        if terms and "pt_noiseOffset" in prog:
-            prog["pt_noiseOffset"].write(
-                np.stack([term.offset_at(t) for term in terms]).astype(np.float32).tobytes()
-            )
-        if terms and "pt_noiseAmplitude" in prog:
-            prog["pt_noiseAmplitude"].write(
-                np.array([term.amplitude for term in terms], np.float32).tobytes()
-            )
+        bits = options.quant_bits  # Hart §4.3: B bits over the object's solid-coordinate extent
+        terms = self.terms[: self.defines(options)["PT_TERM_COUNT"]]
+        values: dict[str, object] = {
+            "u_wrap": textures.wrap_code,
+            "u_gaussianRange": resources.gaussian_range,
+            "u_solidFromObject": self.solid_from_object.T,
+            "u_quantStep": 2.0 * resources.solid_extent / 2.0**bits if bits else 0.0,
+            "pt_quadric": self.quadric.T,
+        }
+        if terms:
+            values["pt_noiseMatrix"] = np.stack([term.matrix.T for term in terms])
+            values["pt_noiseOffset"] = np.stack([term.offset_at(t) for term in terms])
+            values["pt_noiseAmplitude"] = np.array([term.amplitude for term in terms])
+        set_uniforms(prog, values)
 
     def driver(self, s: np.ndarray, t: float = 0.0, reduced_terms: int | None = None, linear: bool = False):
         """NumPy float64 reference of f(s) and df/ds (eqs. 1, 10-12); s has shape (..., 3)."""
@@ -181,7 +168,8 @@ class HartMaterial:
 def driver_gaussian(
     material: HartMaterial, s: np.ndarray, dsdx: np.ndarray, dsdy: np.ndarray, t: float = 0.0
 ):
-    """NumPy twin of pt_driverGaussian: (μ, σ_lin², σ_res²) of f over box footprints spanned by dsdx, dsdy."""
+    """NumPy twin of pt_driverGaussian: (μ, σ_lin², σ_res²) of f over box footprints spanned by dsdx, dsdy
+    (the shader returns the gradient (g_x, g_y) whose box variance is σ_lin²)."""
     from prefilter.procedural.noise_stats import fit_split, noise_stats, split_fit
 
     stats = noise_stats()

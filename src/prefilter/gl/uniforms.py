@@ -1,0 +1,28 @@
+"""Setting uniforms and samplers by name, skipping those the GLSL compiler removed as unused.
+
+NumPy arrays are written as raw float32 bytes, so matrices must already be column-major (pass M.T);
+arrays of vectors or matrices are written whole (`name` without an index).
+"""
+
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+
+def set_uniforms(prog: moderngl.Program, values: dict[str, object]) -> None:
+    for name, value in values.items():
+        if name not in prog:
+            continue
+        if isinstance(value, np.ndarray):
+            prog[name].write(np.ascontiguousarray(value, dtype=np.float32).tobytes())
+        else:
+            prog[name].value = value
+
+
+def bind_samplers(prog: moderngl.Program, textures: dict[str, moderngl.Texture], first_unit: int = 0) -> None:
+    """Bind each texture to its own unit (in dict order from first_unit) and point its sampler at it."""
+    for unit, (name, texture) in enumerate(textures.items(), first_unit):
+        if name in prog:
+            texture.use(location=unit)
+            prog[name].value = unit
