@@ -25,7 +25,7 @@ $(STAMP): pyproject.toml
 
 demo: setup
 	$(VENV)/bin/prefilter compare wood-teapot -o out/wood-teapot
-	$(VENV)/bin/prefilter compare zone-plate -o out/zone-plate
+	$(VENV)/bin/prefilter compare noise-plane -o out/noise-plane
 
 test: setup
 	$(VENV)/bin/ruff check src tests

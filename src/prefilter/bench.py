@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from prefilter.compare import compare_scene, progress_bar
+from prefilter.gl.context import renderer_name
 from prefilter.gl.render import REFERENCE, Renderer, RenderOptions, composite, coverage_mask, scene_modes
 from prefilter.metrics import compare
 from prefilter.scene import Scene, preset_names, resolve_scene
@@ -282,7 +283,11 @@ def run_bench(
     if quick:
         size, spp = size or (128, 96), min(spp, 64)
     scenes = [resolve_scene(n) for n in names]
-    results: dict[str, dict] = {"presets": {}, "size_override": list(size) if size else None}
+    results: dict = {
+        "renderer": renderer_name(),
+        "presets": {},
+        "size_override": list(size) if size else None,
+    }
     for scene in scenes:
         results["presets"][scene.name] = bench_preset(scene, size, spp, frames)
 

@@ -37,9 +37,8 @@ import trimesh
 
 from prefilter import PrefilterError
 
-# Layout of `Mesh.interleaved()`, ready for ctx.vertex_array(prog, [(vbo, VERTEX_FORMAT, *names)]).
-VERTEX_FORMAT = "3f 3f 4f 2f"
-VERTEX_ATTRIBUTES = ("in_pos", "in_nrm", "in_tan", "in_uv")
+# Layout of `Mesh.interleaved()`: (vertex attribute, float count) in order.
+VERTEX_LAYOUT = (("in_pos", 3), ("in_nrm", 3), ("in_tan", 4), ("in_uv", 2))
 
 SUPPORTED_MESH_FORMATS = (".obj", ".ply", ".stl", ".glb", ".gltf")
 
@@ -74,7 +73,7 @@ class Mesh:
             raise ValueError(f"Mesh.indices refers to vertex {int(self.indices.max())} of {n}")
 
     def interleaved(self) -> np.ndarray:
-        """(n, 12) float32 rows [position xyz, normal xyz, tangent xyzw, uv] (see VERTEX_FORMAT)."""
+        """(n, 12) float32 rows [position xyz, normal xyz, tangent xyzw, uv] (see VERTEX_LAYOUT)."""
         return np.hstack([self.positions, self.normals, self.tangents, self.uvs]).astype(np.float32)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:

@@ -21,7 +21,7 @@ import moderngl
 import numpy as np
 
 from prefilter import PrefilterError
-from prefilter.geometry import Mesh, load_mesh, make_primitive
+from prefilter.geometry import VERTEX_LAYOUT, Mesh, load_mesh, make_primitive
 from prefilter.gl.context import gl_context
 from prefilter.gl.program import build_program
 from prefilter.gl.uniforms import set_uniforms
@@ -89,7 +89,7 @@ class _GPUObject:
             defines = {mode_define(mode): True, **self.obj.material.defines(self.options)}
             prog = build_program(self.ctx, vertex, fragment, target=self.target, defines=defines)
             layout, names = [], []
-            for name, n in (("in_pos", 3), ("in_nrm", 3), ("in_tan", 4), ("in_uv", 2)):
+            for name, n in VERTEX_LAYOUT:
                 if name in prog:
                     layout.append(f"{n}f")
                     names.append(name)

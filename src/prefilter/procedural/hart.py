@@ -87,9 +87,6 @@ class HartMaterial:
     def diagnostic_modes(self) -> tuple[str, ...]:
         return DIAGNOSTIC_MODES
 
-    def animated(self) -> bool:
-        return any(np.any(term.velocity != 0) for term in self.terms)
-
     # -- GPU -------------------------------------------------------------------------------------
     def shader_sources(self) -> tuple[Path, Path]:
         return PACKAGE_ROOT / "glsl/common/surface.vert", SHADER_DIR / "hart.frag"
