@@ -16,12 +16,13 @@ from prefilter.gl.evaluate import glsl_eval
 from prefilter.procedural.hart import HartMaterial, NoiseTerm, driver_gaussian
 from prefilter.procedural.noise import perlin_noise, perlin_noise_grad
 from prefilter.procedural.noise_stats import (
-    fit_split,
+    GLSL,
     footprint_samples,
     measure_entry,
     noise_stats,
     random_footprints,
     split_fit,
+    split_fits,
 )
 
 RNG = np.random.default_rng(11)
@@ -147,7 +148,7 @@ def test_noise_table_reproduces_brute_force_variance(rho1, rho2):
 
 def test_fitted_split_stays_close_to_the_table():
     stats = noise_stats()
-    fits = fit_split(stats)
+    fits = split_fits()
     r1, r2 = np.meshgrid(2.0**stats.grid, 2.0**stats.grid, indexing="ij")
     beta, gamma, lam = split_fit(fits, r1, r2)
     assert np.abs(beta - stats.beta).max() < 0.1
@@ -180,3 +181,18 @@ def test_driver_statistics_against_brute_force_footprints():
         # the mean estimate beats both the centre value (point) and 0 (everything unresolved)
         total = sum(t.amplitude**2 for t in terms) * noise_stats().variance
         assert np.mean((mu - true_mean) ** 2) < 0.25 * total
+
+
+def test_generated_glsl_holds_the_fitted_edges():
+    """noise_stats.glsl (what the shader reads) and the NumPy twin use the same fit of the same table."""
+    import re
+
+    text = GLSL.read_text()
+    for name, (e0, e1) in split_fits().items():
+        m = re.search(rf"NS_{name.upper()}_EDGES = vec2\(([-\d.]+), ([-\d.]+)\)", text)
+        assert m, name
+        assert float(m.group(1)) == pytest.approx(e0, abs=1e-5) and float(m.group(2)) == pytest.approx(
+            e1, abs=1e-5
+        )
+    m = re.search(r"NS_VARIANCE = ([\d.]+);", text)
+    assert float(m.group(1)) == pytest.approx(noise_stats().variance, abs=1e-6)

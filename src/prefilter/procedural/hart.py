@@ -167,10 +167,10 @@ def driver_gaussian(
 ):
     """NumPy twin of pt_driverGaussian: (μ, σ_lin², σ_res²) of f over box footprints spanned by dsdx, dsdy
     (the shader returns the gradient (g_x, g_y) whose box variance is σ_lin²)."""
-    from prefilter.procedural.noise_stats import fit_split, noise_stats, split_fit
+    from prefilter.procedural.noise_stats import noise_stats, split_fit, split_fits
 
     stats = noise_stats()
-    fits = fit_split(stats)
+    fits = split_fits()
     s = np.asarray(s, np.float64)
     s4 = np.concatenate([s, np.ones(s.shape[:-1] + (1,))], axis=-1)
     qs = s4 @ material.quadric

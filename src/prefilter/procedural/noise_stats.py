@@ -160,6 +160,12 @@ def fit_split(stats: NoiseStats) -> dict[str, tuple[float, float]]:
     return fits
 
 
+@lru_cache(maxsize=1)
+def split_fits() -> dict[str, tuple[float, float]]:
+    """The fits of the stored table, computed once (the same edges noise_stats.glsl holds)."""
+    return fit_split(noise_stats())
+
+
 def split_fit(fits: dict, rho1: np.ndarray, rho2: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """NumPy twin of pt_noiseSplit: (β, γ, λ) from the fitted edges."""
     l1, l2 = np.log2(np.maximum(rho1, 1e-30)), np.log2(np.maximum(rho2, 1e-30))
