@@ -1,0 +1,60 @@
+// irradiance.glsl -- irradiance environment maps in 9 spherical-harmonic coefficients (Ramamoorthi &
+// Hanrahan 2001, eqs. 7-9 and 13), filtered over the slopes of a microsurface (Heitz, Nowrouzezahrai,
+// Poulin & Neyret 2014, §5.3).
+//
+// What it computes
+//   E(n) = sum_{l<=2} sum_m A_l L_lm Y_lm(n), A_0 = pi, A_1 = 2 pi / 3, A_2 = pi / 4: the (unshadowed)
+//   irradiance of a surface with unit world normal n under distant lighting with SH9 radiance
+//   coefficients L_lm. A Lambertian surface of albedo rho reflects radiance rho * E / pi. Not clamped:
+//   it can be slightly negative facing away from a strong sun (see irradiance.py for measured errors).
+//   The filtered irradiance on a Gaussian microsurface is E_s[E(n(s))] over micro-slopes
+//   s ~ N(mean, cov) (the view-dependent visible-slope distribution, computed by the caller), with
+//   n(s) = normalize(worldFromTangent * vec3(-s, 1)), by 3 x 3 Gauss-Hermite cubature through the
+//   Cholesky factor of cov (nodes 0, +-sqrt(3); weights 2/3, 1/6 per axis).
+//
+// Conventions (shared with microsurface/irradiance.py, which projects the maps and holds the oracles)
+//   - coeffs[k], k = l*l + l + m, in the order (0,0) (1,-1) (1,0) (1,1) (2,-2) (2,-1) (2,0) (2,1) (2,2);
+//     RGB linear radiance; real SH of RH2001 eq. 3 without Condon-Shortley phase (Y_11 = +0.488603 x).
+//     Upload from Python with sh_uniform(coeffs) to a `uniform vec3 name[9]` and pass the array here.
+//   - World +z is up; equirect maps have row 0 at the zenith, longitude 0 at +x increasing towards +y.
+//   - worldFromTangent: columns are the tangent, bitangent and macro-normal in world space.
+//   - cov = vec3(var_x, cov_xy, var_y) of the slopes (dimensionless); cov = 0 gives E at the mean normal.
+//
+// Functions
+//   vec3 ms_irradianceSH(vec3 coeffs[9], vec3 n)
+//   vec3 ms_filteredIrradianceSH(vec3 coeffs[9], mat3 worldFromTangent, vec2 mean, vec3 cov)
+
+// A_l times the constant of Y_lm (RH2001 eq. 13: 2 c2, 2 c1, c4, c5, c1).
+const float MS_SH_K0 = 0.886226925;   // pi * 0.282095
+const float MS_SH_K1 = 1.023326708;   // (2 pi / 3) * 0.488603
+const float MS_SH_K2 = 0.858085531;   // (pi / 4) * 1.092548 (xy, yz, xz)
+const float MS_SH_K20 = 0.247707956;  // (pi / 4) * 0.315392 (3 z^2 - 1)
+const float MS_SH_K22 = 0.429042765;  // (pi / 4) * 0.546274 (x^2 - y^2)
+
+vec3 ms_irradianceSH(vec3 coeffs[9], vec3 n) {
+    return MS_SH_K0 * coeffs[0]
+        + MS_SH_K1 * (n.y * coeffs[1] + n.z * coeffs[2] + n.x * coeffs[3])
+        + MS_SH_K2 * ((n.x * n.y) * coeffs[4] + (n.y * n.z) * coeffs[5] + (n.x * n.z) * coeffs[7])
+        + MS_SH_K20 * (3.0 * n.z * n.z - 1.0) * coeffs[6]
+        + MS_SH_K22 * (n.x * n.x - n.y * n.y) * coeffs[8];
+}
+
+vec3 ms_filteredIrradianceSH(vec3 coeffs[9], mat3 worldFromTangent, vec2 mean, vec3 cov) {
+    // Cholesky factor [l11 0; l21 l22] of [[xx, xy], [xy, yy]], clamped to positive semi-definite.
+    float l11 = sqrt(max(cov.x, 0.0));
+    float l21 = l11 > 0.0 ? cov.y / l11 : 0.0;
+    float l22 = sqrt(max(cov.z - l21 * l21, 0.0));
+    vec3 sum = vec3(0.0);
+    for (int i = 0; i < 3; ++i) {
+        float xi = 1.7320508 * float(i - 1);
+        float wi = i == 1 ? 0.6666667 : 0.16666667;
+        for (int j = 0; j < 3; ++j) {
+            float xj = 1.7320508 * float(j - 1);
+            float wj = j == 1 ? 0.6666667 : 0.16666667;
+            vec2 s = mean + vec2(l11 * xi, l21 * xi + l22 * xj);
+            vec3 n = normalize(worldFromTangent * vec3(-s, 1.0));
+            sum += (wi * wj) * ms_irradianceSH(coeffs, n);
+        }
+    }
+    return sum;
+}
