@@ -150,6 +150,11 @@ class Renderer:
             obj = gpu.obj
             prog, vao = gpu.program(mode)
             world_from_object = obj.world_from_object
+            object_from_world = np.linalg.inv(world_from_object)
+            if camera.projection == "orthographic":  # rays along the view direction (w = 0)
+                eye = np.append(object_from_world[:3, :3] @ (camera.target - camera.eye), 0.0)
+            else:
+                eye = object_from_world @ np.append(camera.eye, 1.0)
             lights = scene.lights[:4] + [Light(np.zeros(3), np.zeros(3))] * (4 - len(scene.lights[:4]))
             set_uniforms(
                 prog,
@@ -159,6 +164,8 @@ class Renderer:
                         world_from_object[:3, :3]
                     ),  # (M^-1)^T, transposed
                     "u_jitter": jitter,
+                    "u_eyeObject": eye,  # ray-marched materials: the eye (w = 1) or view direction (w = 0)
+                    "u_objectFromWorld": object_from_world.T,
                     "sh_lit": int(obj.lit),
                     "sh_ambient": scene.ambient if scene.lights else 1.0,
                     "sh_lightCount": len(scene.lights),

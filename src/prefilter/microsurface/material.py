@@ -1,0 +1,257 @@
+"""Colour-mapped microsurfaces: Heitz, Nowrouzezahrai, Poulin, Neyret 2014 §5–§7 (type "microsurface").
+
+A procedural height field (heightfield.py) displaces a macro plane or sphere. Colours are tied to its
+heights (C_h(h + ρ r), §5.1), to its slopes along a tangent direction d (C_s(s·d), §5.2), and to an
+uncorrelated procedural texture (C₀(r), §4), combined linearly (κ₀C₀ + κ₁C_h + κ₂C_s, §6) or with the
+slope layer composited over the rest (a product, §6: the snake skin of Fig. 15). The height may pass
+through a transfer function h = g(f) (§7). Light is directional (with shadows) plus unshadowed ambient,
+or an environment map's irradiance in 9 SH coefficients (§5.3). microsurface.frag documents the modes.
+
+Scene TOML (under [object.material], type = "microsurface"):
+  macro = "plane" | "sphere"; radius = 1.0 (sphere: must match the mesh)
+  [height]           octaves = 4, amplitude = 0.05, frequency = 4, gain = 0.5, lacunarity = 2 (Fractal)
+  [texture]          the same keys: the procedural driver r of C₀ and of the perturbation (optional)
+  perturb = 0.0      ρ in C(h + ρ r)
+  kappa = [κ₀, κ₁, κ₂]  default 1 for each map present
+  slope_layer = "add" | "over";  slope_direction = [dx, dy] (tangent frame: +x, −z on the plane)
+  height_moments = "table" | "log-fit"   D_h's moments: exact quadrature table, or eqs. (16)/(17)
+  [height_colour], [slope_colour], [texture_colour]: scale = 1, offset = 0 (argument = scale·x + offset),
+      [....colour_table] as for Hart's model, [....preconvolved] as for the gaussian mode
+  [transfer]         function = "moss" | "sponge" | "linear" (microsurface/transfer.py), parameters
+  [irradiance]       environment = "file.exr" (equirectangular, linear; replaces lights and ambient)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import moderngl
+import numpy as np
+
+from prefilter.colormap.gaussian import parse_preconvolve_options, preconvolve
+from prefilter.colormap.table import ColourTable, parse_colour_table
+from prefilter.gl.uniforms import bind_samplers, set_uniforms
+from prefilter.microsurface.heightfield import LATTICE_FROM_OBJECT, MAX_OCTAVES, Fractal
+from prefilter.scene import Reader, register_material
+
+SHADER_DIR = Path(__file__).resolve().parent
+PACKAGE_ROOT = SHADER_DIR.parent
+FILTERED_MODES = ("texture-filter", "surface-filter")
+MAPS = ("height", "slope", "texture")
+
+
+@dataclass
+class ColourMap:
+    table: ColourTable
+    scale: float = 1.0
+    offset: float = 0.0
+    preconvolved: dict = field(default_factory=dict)
+
+
+@dataclass
+class MicrosurfaceMaterial:
+    height: Fractal
+    texture: Fractal | None
+    maps: dict[str, ColourMap]
+    macro: str = "plane"
+    radius: float = 1.0
+    perturb: float = 0.0
+    kappa: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    slope_over: bool = False
+    slope_direction: tuple[float, float] = (1.0, 0.0)
+    height_moments: str = "table"
+    transfer: object | None = None  # microsurface.transfer.TransferFunction
+    environment: Path | None = None
+
+    kind = "microsurface"
+
+    def modes(self) -> tuple[str, ...]:
+        return FILTERED_MODES
+
+    def diagnostic_modes(self) -> tuple[str, ...]:
+        return ("march-steps",)
+
+    def scaled(self, factor: float) -> MicrosurfaceMaterial:
+        texture = self.texture.scaled(factor) if self.texture else None
+        return replace(self, height=self.height.scaled(factor), texture=texture)
+
+    def shader_sources(self) -> tuple[Path, Path]:
+        return PACKAGE_ROOT / "glsl/common/surface.vert", SHADER_DIR / "microsurface.frag"
+
+    def defines(self, options) -> dict[str, object]:
+        defines: dict[str, object] = {f"MS_{name.upper()}_MAP": True for name in self.maps}
+        if self.macro == "sphere":
+            defines["MS_SPHERE"] = True
+        if self.height_moments == "log-fit":
+            defines["MS_HEIGHT_FIT"] = True
+        if self.transfer is not None:
+            defines["MS_TRANSFER"] = True
+        if self.environment is not None:
+            defines["MS_IRRADIANCE"] = True
+        return defines
+
+    def upload(self, ctx: moderngl.Context, mesh) -> dict:
+        from prefilter.microsurface.height_filtering import height_filtering_table
+
+        textures: dict[str, moderngl.Texture] = {}
+        uniforms: dict[str, object] = {}
+        owned: list = []  # everything with a release() that this material created
+        for name, cmap in self.maps.items():
+            table = cmap.table.premultiplied()
+            pre = preconvolve(table, **cmap.preconvolved)
+            point = table.upload(ctx)
+            owned.append(point)
+            textures[f"u_{name}Point"] = point.point
+            textures[f"u_{name}Gaussian"] = pre.upload(ctx)
+            owned.append(textures[f"u_{name}Gaussian"])
+            uniforms[f"u_{name}Range"] = (*pre.mu_range, pre.sigma_max)
+            uniforms[f"u_{name}Wrap"] = point.wrap_code
+            uniforms[f"u_{name}Map"] = (cmap.scale, cmap.offset)
+        textures["u_heightFilteringTable"] = height_filtering_table().upload(ctx)
+        owned.append(textures["u_heightFilteringTable"])
+        if self.transfer is not None:
+            from prefilter.microsurface.transfer import preconvolve_transfer
+
+            pre = preconvolve_transfer(self.transfer)
+            textures["u_transferTable"] = pre.upload(ctx)
+            owned.append(textures["u_transferTable"])
+            uniforms["u_transferRange"] = (*pre.mu_range, pre.sigma_max)
+            v = np.linspace(*pre.mu_range, 4097)
+            uniforms["u_transferBound"] = (
+                float(np.max(np.abs(self.transfer.g(v)))),
+                float(np.max(np.abs(self.transfer.g_prime(v)))),
+            )
+        if self.environment is not None:
+            from prefilter.microsurface.irradiance import read_environment, sh9_project, sh_uniform
+
+            uniforms["u_sh"] = sh_uniform(sh9_project(read_environment(self.environment)))
+        return {"textures": textures, "uniforms": uniforms, "owned": owned}
+
+    def release(self, resources: dict) -> None:
+        for item in resources["owned"]:
+            item.release()
+
+    def octave_uniforms(self) -> dict[str, object]:
+        pairs = np.zeros((2 * MAX_OCTAVES, 2), np.float32)
+        offsets = np.zeros((2 * MAX_OCTAVES, 3), np.float32)
+        pairs[:MAX_OCTAVES], offsets[:MAX_OCTAVES] = self.height.octave_uniforms()
+        if self.texture is not None:
+            pairs[MAX_OCTAVES:], offsets[MAX_OCTAVES:] = self.texture.octave_uniforms()
+            offsets[MAX_OCTAVES:] += 101.0  # the texture is not the height field
+        return {
+            "ms_octave": pairs,
+            "ms_octaveOffset": offsets,
+            "ms_heightOctaves": self.height.octaves,
+            "ms_textureOctaves": self.texture.octaves if self.texture else 0,
+            "ms_latticeFromObject": LATTICE_FROM_OBJECT.T,
+            "ms_radius": self.radius,
+        }
+
+    def bind(self, prog, resources: dict, t: float, options) -> None:
+        bind_samplers(prog, resources["textures"])
+        direction = np.asarray(self.slope_direction, float)
+        set_uniforms(
+            prog,
+            {
+                **self.octave_uniforms(),
+                **resources["uniforms"],
+                "u_solidFromObject": np.eye(4),
+                "u_perturb": self.perturb,
+                "u_kappa": tuple(float(k) for k in self.kappa),
+                "u_slopeOver": int(self.slope_over),
+                "u_slopeDirection": tuple(direction / np.linalg.norm(direction)),
+            },
+        )
+
+
+def _fractal(r: Reader, defaults: Fractal) -> Fractal:
+    fractal = Fractal(
+        octaves=r.integer("octaves", defaults.octaves, lo=1, hi=MAX_OCTAVES),
+        amplitude=r.number("amplitude", defaults.amplitude, lo=0.0),
+        frequency=r.number("frequency", defaults.frequency, lo=1e-6),
+        gain=r.number("gain", defaults.gain, lo=0.0, hi=1.0),
+        lacunarity=r.number("lacunarity", defaults.lacunarity, lo=1.0, hi=8.0),
+    )
+    r.finish()
+    return fractal
+
+
+def _colour_map(r: Reader) -> ColourMap:
+    tr = r.child("colour_table", required=True)
+    assert tr is not None
+    cmap = ColourMap(
+        parse_colour_table(tr),
+        r.number("scale", 1.0),
+        r.number("offset", 0.0),
+        parse_preconvolve_options(r.child("preconvolved")),
+    )
+    r.finish()
+    return cmap
+
+
+@register_material("microsurface")
+def parse_microsurface(r: Reader, base_dir: Path) -> MicrosurfaceMaterial:
+    macro = r.string("macro", "plane", choices=("plane", "sphere"))
+    radius = r.number("radius", 1.0, lo=1e-6)
+    hr = r.child("height", required=True)
+    assert hr is not None
+    height = _fractal(hr, Fractal())
+    tr = r.child("texture")
+    texture = _fractal(tr, Fractal(4, 0.5, 4.0)) if tr is not None else None
+    maps: dict[str, ColourMap] = {}
+    for name in MAPS:
+        mr = r.child(f"{name}_colour")
+        if mr is not None:
+            maps[name] = _colour_map(mr)
+    if not maps:
+        raise r.fail(
+            "height_colour",
+            "a microsurface needs at least one of height_colour, slope_colour, texture_colour",
+        )
+    if "texture" in maps and texture is None:
+        raise r.fail("texture", "texture_colour needs a [texture] fractal to drive it")
+    perturb = r.number("perturb", 0.0)
+    if perturb != 0.0 and texture is None:
+        raise r.fail("perturb", "a height perturbation needs a [texture] fractal")
+    default_kappa = [1.0 if name in maps else 0.0 for name in ("texture", "height", "slope")]
+    kappa = tuple(float(k) for k in r.vector("kappa", 3, default=default_kappa))
+    slope_over = r.string("slope_layer", "add", choices=("add", "over")) == "over"
+    direction = r.vector("slope_direction", 2, default=[1.0, 0.0])
+    if np.linalg.norm(direction) == 0:
+        raise r.fail("slope_direction", "must be non-zero")
+    moments = r.string("height_moments", "table", choices=("table", "log-fit"))
+    transfer = None
+    xr = r.child("transfer")
+    if xr is not None:
+        from prefilter.microsurface.transfer import TRANSFER_FUNCTIONS
+
+        name = xr.string("function", required=True, choices=tuple(TRANSFER_FUNCTIONS))
+        params = {key: xr.number(key) for key in xr.table if key != "function"}
+        try:
+            transfer = TRANSFER_FUNCTIONS[name](**params)
+        except TypeError as exc:
+            raise xr.fail("function", f"bad parameters for {name}: {exc}") from None
+        xr.finish()
+    environment = None
+    er = r.child("irradiance")
+    if er is not None:
+        environment = Path(er.string("environment", required=True))
+        environment = environment if environment.is_absolute() else base_dir / environment
+        if not environment.is_file():
+            raise er.fail("environment", f"file not found: {environment}")
+        er.finish()
+    return MicrosurfaceMaterial(
+        height,
+        texture,
+        maps,
+        macro,
+        radius,
+        perturb,
+        kappa,  # type: ignore[arg-type]
+        slope_over,
+        (float(direction[0]), float(direction[1])),
+        moments,
+        transfer,
+        environment,
+    )

@@ -1,0 +1,90 @@
+// visible_slopes.glsl -- the view-dependent slope filtering distribution D_s of a Gaussian microsurface,
+// Heitz, Nowrouzezahrai, Poulin & Neyret 2014 §5.2, eq. (18), and a 9-node Gauss-Hermite cubature over
+// slopes. Twin of microsurface/visible_slopes.py, which holds the derivation (ours: the paper's is in its
+// supplemental document):
+//     D_s(s) ∝ max(o_z - dot(s, o_xy), 0) N(s; mean, Sigma)
+// (projected facet area towards wo; Smith masking is independent of slope and cancels). With
+// sigma_u^2 = o_xy^T Sigma o_xy, a = (o_z - dot(o_xy, mean)) / sigma_u and (zbar, var_z) the mean and
+// variance of (a - z)^+ phi(z):
+//     visMean = mean + Sigma o_xy zbar / sigma_u,   visCov = Sigma - (1 - var_z) Sigma o_xy o_xy^T Sigma / sigma_u^2.
+//
+// Conventions: wo unit view direction in the tangent frame (normal = +z); slopes s = grad h ~ N(mean,
+// Sigma), cov = vec3(Sxx, Sxy, Syy).
+//
+// Functions
+//   vec2  ms_visibleSlopeMoments1D(float a)   (zbar, var_z) of (a - z)^+ phi(z); a < 0 through the Mills
+//         continued fraction of smith.glsl (no cancellation); a clamped to [-1e4, 1e4].
+//   void  ms_visibleSlopes(vec3 wo, vec2 mean, vec3 cov, out vec2 visMean, out vec3 visCov)
+//         mean and covariance (packed like cov) of D_s; D_s = p_s (visMean = mean, visCov = cov) when
+//         sigma_u^2 <= 1e-30 (normal view, or no slope variance along o_xy).
+//   float ms_projectedArea(vec3 wo, vec2 mean, vec3 cov)   E[max(o_z - dot(s, o_xy), 0)], the projected
+//         area (integral of max(cos theta_o, 0) dA) per unit macro area: c Phi(a) + sigma_u phi(a),
+//         c = o_z - dot(o_xy, mean); max(c, 0) when sigma_u = 0.
+//   void  ms_slopeNodes3(vec2 mean, vec3 cov, out vec2 nodes[9], out float weights[9])
+//         3x3 Gauss-Hermite cubature against N(mean, Sigma): node 3 i + j = mean + L (z_i, z_j), L the
+//         lower Cholesky factor of Sigma (semidefinite allowed), z in {-sqrt(3), 0, sqrt(3)}, weights
+//         w_i w_j with w = (1/6, 2/3, 1/6). Exact for polynomials of degree <= 5 in each slope.
+
+#include "microsurface/smith.glsl"
+
+vec2 ms_visibleSlopeMoments1D(float a) {
+    a = clamp(a, -1e4, 1e4);
+    if (a >= 0.0) {
+        float cdf = ms_normalCdf(a);
+        float pdf = ms_normalPdf(a);
+        float m0 = a * cdf + pdf;
+        float zbar = -cdf / m0;
+        return vec2(zbar, (a * cdf + 2.0 * pdf) / m0 - zbar * zbar);
+    }
+    // t = a - z >= 0 has the density ∝ t exp(-x t - t^2 / 2), x = -a: mean 2 rho2, var 2 rho2 (3 rho3 - 2 rho2)
+    vec3 rho = ms_millsRho(-a);
+    return vec2(a - 2.0 * rho.y, 2.0 * rho.y * (3.0 * rho.z - 2.0 * rho.y));
+}
+
+void ms_visibleSlopes(vec3 wo, vec2 mean, vec3 cov, out vec2 visMean, out vec3 visCov) {
+    vec2 v = wo.xy;
+    vec2 sv = vec2(cov.x * v.x + cov.y * v.y, cov.y * v.x + cov.z * v.y);  // Sigma o_xy
+    float su2 = dot(v, sv);
+    visMean = mean;
+    visCov = cov;
+    if (!(su2 > 1e-30)) {
+        return;
+    }
+    float su = sqrt(su2);
+    vec2 m = ms_visibleSlopeMoments1D((wo.z - dot(v, mean)) / su);
+    visMean = mean + sv * (m.x / su);
+    float k = (1.0 - m.y) / su2;
+    visCov = cov - k * vec3(sv.x * sv.x, sv.x * sv.y, sv.y * sv.y);
+}
+
+float ms_projectedArea(vec3 wo, vec2 mean, vec3 cov) {
+    vec2 v = wo.xy;
+    float c = wo.z - dot(v, mean);
+    float su2 = v.x * v.x * cov.x + 2.0 * v.x * v.y * cov.y + v.y * v.y * cov.z;
+    if (!(su2 > 1e-30)) {
+        return max(c, 0.0);
+    }
+    float su = sqrt(su2);
+    float a = clamp(c / su, -1e4, 1e4);
+    if (a >= 0.0) {
+        return c * ms_normalCdf(a) + su * ms_normalPdf(a);
+    }
+    return su * ms_normalPdf(a) * ms_normalLossScaled(-a);
+}
+
+void ms_slopeNodes3(vec2 mean, vec3 cov, out vec2 nodes[9], out float weights[9]) {
+    float l11 = sqrt(max(cov.x, 0.0));
+    float l21 = l11 > 0.0 ? cov.y / l11 : 0.0;
+    float l22 = sqrt(max(cov.z - l21 * l21, 0.0));
+    const float Z = 1.7320508076;  // sqrt(3)
+    for (int i = 0; i < 3; ++i) {
+        float zi = Z * float(i - 1);
+        float wi = i == 1 ? 2.0 / 3.0 : 1.0 / 6.0;
+        for (int j = 0; j < 3; ++j) {
+            float zj = Z * float(j - 1);
+            float wj = j == 1 ? 2.0 / 3.0 : 1.0 / 6.0;
+            nodes[3 * i + j] = mean + vec2(l11 * zi, l21 * zi + l22 * zj);
+            weights[3 * i + j] = wi * wj;
+        }
+    }
+}

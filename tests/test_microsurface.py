@@ -1,0 +1,113 @@
+"""Microsurface height fields and the ray marcher (microsurface/heightfield.py, heightfield.glsl).
+
+Oracles: fresh Monte Carlo of Perlin noise (the statistics constants), the NumPy twin of the fractal
+(itself built on the reference-checked noise), finite differences, and a dense brute-force scan of the
+gap along each ray (the marcher's first hit).
+"""
+
+import numpy as np
+import pytest
+
+from prefilter.gl.evaluate import glsl_eval
+from prefilter.microsurface.heightfield import (
+    GRADIENT_VARIANCE,
+    LATTICE_FROM_OBJECT,
+    NOISE_VARIANCE,
+    Fractal,
+)
+from prefilter.microsurface.material import MicrosurfaceMaterial
+from prefilter.procedural.noise import perlin_noise, perlin_noise_grad
+
+RNG = np.random.default_rng(21)
+FRACTAL = Fractal(octaves=4, amplitude=0.16, frequency=2.0, gain=0.5)
+INCLUDES = ("microsurface/heightfield.glsl",)
+
+
+def _uniforms(fractal: Fractal = FRACTAL, radius: float = 1.0) -> dict:
+    return MicrosurfaceMaterial(fractal, None, {}, radius=radius).octave_uniforms()
+
+
+def test_noise_statistics_constants_match_fresh_monte_carlo():
+    # plane sections through the tilted lattice, as the height field samples them
+    p = np.zeros((400_000, 3))
+    p[:, 0], p[:, 2] = RNG.uniform(0, 200, (2, len(p)))
+    lattice = p @ LATTICE_FROM_OBJECT.T + np.array([0.0, 0.5, 0.0])
+    values = perlin_noise(lattice)
+    _, grad = perlin_noise_grad(lattice)
+    tangential = grad @ LATTICE_FROM_OBJECT  # object-space gradient; x and z are the plane's axes
+    assert values.var() == pytest.approx(NOISE_VARIANCE, rel=0.03)
+    assert (tangential[:, 0] ** 2).mean() == pytest.approx(GRADIENT_VARIANCE, rel=0.06)
+    assert (tangential[:, 2] ** 2).mean() == pytest.approx(GRADIENT_VARIANCE, rel=0.06)
+
+
+def test_fractal_statistics_match_sampled_surface():
+    p = np.zeros((300_000, 3))
+    p[:, 0], p[:, 2] = RNG.uniform(0, 100, (2, len(p)))
+    h = FRACTAL.value(p)
+    g = FRACTAL.gradient(p)
+    assert h.var() == pytest.approx(FRACTAL.variance(), rel=0.05)
+    assert (g[:, 0] ** 2).mean() == pytest.approx(FRACTAL.slope_variance(), rel=0.08)
+    assert (g[:, 2] ** 2).mean() == pytest.approx(FRACTAL.slope_variance(), rel=0.08)
+    assert np.abs(h).max() <= FRACTAL.height_bound()
+
+
+def test_fractal_gradient_matches_finite_differences():
+    p = RNG.uniform(-3, 3, (200, 3))
+    g = FRACTAL.gradient(p)
+    eps = 1e-5
+    for axis in range(3):
+        e = np.zeros(3)
+        e[axis] = eps
+        fd = (FRACTAL.value(p + e) - FRACTAL.value(p - e)) / (2 * eps)
+        np.testing.assert_allclose(g[:, axis], fd, atol=2e-4)
+
+
+@pytest.mark.parametrize("target", ["gl330", "es300"])
+def test_glsl_fractal_matches_numpy(target):
+    p = np.zeros((500, 3))
+    p[:, 0], p[:, 2] = RNG.uniform(-4, 4, (2, 500))
+    got = glsl_eval(
+        "fractalTest(p)",
+        {"p": p},
+        4,
+        includes=INCLUDES,
+        target=target,
+        uniforms=_uniforms(),
+        prelude="vec4 fractalTest(vec3 p) { ms_setWeights(vec3(0.0), vec3(0.0), true);"
+        " return ms_fractalGrad(p, 0, ms_heightOctaves); }",
+    )
+    np.testing.assert_allclose(got[:, 3], FRACTAL.value(p), atol=2e-5)
+    np.testing.assert_allclose(got[:, :3], FRACTAL.gradient(p), atol=2e-4)
+
+
+def _first_hit_brute_force(o: np.ndarray, d: np.ndarray, t_max: float, n: int = 40_000) -> float:
+    t = np.linspace(0.0, t_max, n)
+    q = o + t[:, None] * d
+    gap = q[:, 1] - FRACTAL.value(q * np.array([1.0, 0.0, 1.0]))
+    below = np.nonzero(gap <= 0)[0]
+    return float(t[below[0]]) if len(below) else -1.0
+
+
+@pytest.mark.parametrize("elevation", [60.0, 25.0, 8.0, 3.0])
+def test_march_finds_the_first_hit(elevation):
+    """The marcher's hit equals a dense scan's first crossing (no tunnelling through peaks)."""
+    n = 64
+    azimuth = RNG.uniform(0, 2 * np.pi, n)
+    e = np.radians(elevation)
+    d = np.stack([np.cos(e) * np.cos(azimuth), -np.full(n, np.sin(e)), np.cos(e) * np.sin(azimuth)], 1)
+    o = np.stack([RNG.uniform(-2, 2, n), np.full(n, 0.5), RNG.uniform(-2, 2, n)], 1)
+    got = glsl_eval(
+        "marchTest(o, d)",
+        {"o": o, "d": d},
+        includes=INCLUDES,
+        uniforms=_uniforms(),
+        prelude="float marchTest(vec3 o, vec3 d) { ms_setWeights(vec3(0.0), vec3(0.0), true);"
+        " vec2 s = ms_slab(o, d, ms_heightBound); return ms_march(o, d, s.x, s.y, 512, false); }",
+    )
+    bound = FRACTAL.height_bound()
+    t_max = (0.5 + bound) / np.sin(e)
+    expected = np.array([_first_hit_brute_force(o[i], d[i], t_max) for i in range(n)])
+    assert (expected > 0).all()
+    step = t_max / 40_000
+    misses = np.abs(got - expected) > 2 * step + 1e-4
+    assert misses.mean() <= 1 / 64, (got[misses], expected[misses])
