@@ -51,8 +51,15 @@ int ms_steps = 0;          // march steps taken by this fragment (the march-step
 #include "microsurface/transfer.glsl"
 uniform sampler2D u_transferTable;
 uniform vec3 u_transferRange;
-uniform vec2 u_transferBound;   // (max |g|, max |g'|) over the driver's range
+uniform float u_transferScale;  // h = scale · g(f): g in driver units, h in object units
+uniform vec2 u_transferBound;   // (max |h|, max |dh/df|) over the driver range
 float ms_transferSigma;         // σ_f of the unresolved driver: the coarse surface is ḡ(f_c, σ_f)
+
+// (E[h], E[h²], E[h'], E[h'²]) for h = scale · g(f), f ~ N(mu, sigma²).
+vec4 ms_transfer(float mu, float sigma) {
+    float s = u_transferScale;
+    return ms_transferMoments(u_transferTable, mu, sigma, u_transferRange) * vec4(s, s * s, s, s * s);
+}
 #endif
 
 // β of an octave for a box footprint with axes jx, jy in its lattice units (noise_stats.glsl fit).
@@ -156,7 +163,7 @@ mat3 ms_macroFrame(vec3 q) { return mat3(vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, -1.
 #ifdef MS_TRANSFER
 float ms_surfaceHeight(vec3 p) {
     float f = ms_fractal(p, 0, ms_heightOctaves);
-    return ms_transferMoments(u_transferTable, f, ms_transferSigma, u_transferRange).x;
+    return ms_transfer(f, ms_transferSigma).x;
 }
 #else
 float ms_surfaceHeight(vec3 p) { return ms_fractal(p, 0, ms_heightOctaves); }

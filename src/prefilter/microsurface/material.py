@@ -17,8 +17,10 @@ Scene TOML (under [object.material], type = "microsurface"):
   height_moments = "table" | "log-fit"   D_h's moments: exact quadrature table, or eqs. (16)/(17)
   [height_colour], [slope_colour], [texture_colour]: scale = 1, offset = 0 (argument = scale·x + offset),
       [....colour_table] as for Hart's model, [....preconvolved] as for the gaussian mode
-  [transfer]         function = "moss" | "sponge" | "linear" (microsurface/transfer.py), parameters
-  [irradiance]       environment = "file.exr" (equirectangular, linear; replaces lights and ambient)
+  [transfer]         function = "moss" | "sponge" | "linear" (microsurface/transfer.py), its parameters,
+                     scale (h = scale · g(f), with f the [height] fractal in driver units)
+  [irradiance]       environment = "file.exr" (equirectangular, linear; replaces lights and ambient),
+                     intensity = 1 (exposure: the radiance of a white Lambertian facing up)
 """
 
 from __future__ import annotations
@@ -62,7 +64,9 @@ class MicrosurfaceMaterial:
     slope_direction: tuple[float, float] = (1.0, 0.0)
     height_moments: str = "table"
     transfer: object | None = None  # microsurface.transfer.TransferFunction
+    transfer_scale: float = 1.0  # h = transfer_scale · g(f)
     environment: Path | None = None
+    environment_intensity: float = 1.0  # radiance of a white Lambertian facing up
 
     kind = "microsurface"
 
@@ -117,15 +121,21 @@ class MicrosurfaceMaterial:
             textures["u_transferTable"] = pre.upload(ctx)
             owned.append(textures["u_transferTable"])
             uniforms["u_transferRange"] = (*pre.mu_range, pre.sigma_max)
+            uniforms["u_transferScale"] = self.transfer_scale
             v = np.linspace(*pre.mu_range, 4097)
             uniforms["u_transferBound"] = (
-                float(np.max(np.abs(self.transfer.g(v)))),
-                float(np.max(np.abs(self.transfer.g_prime(v)))),
+                self.transfer_scale * float(np.max(np.abs(self.transfer.g(v)))),
+                self.transfer_scale * float(np.max(np.abs(self.transfer.g_prime(v)))),
             )
         if self.environment is not None:
             from prefilter.microsurface.irradiance import read_environment, sh9_project, sh_uniform
 
-            uniforms["u_sh"] = sh_uniform(sh9_project(read_environment(self.environment)))
+            from prefilter.microsurface.irradiance import irradiance_sh
+
+            coeffs = sh9_project(read_environment(self.environment))
+            # exposure: a white Lambertian facing up reflects radiance `intensity` (E_up = π · intensity)
+            up = float(np.mean(irradiance_sh(coeffs, np.array([0.0, 0.0, 1.0]))))
+            uniforms["u_sh"] = sh_uniform(coeffs * (np.pi * self.environment_intensity / up))
         return {"textures": textures, "uniforms": uniforms, "owned": owned}
 
     def release(self, resources: dict) -> None:
@@ -221,25 +231,27 @@ def parse_microsurface(r: Reader, base_dir: Path) -> MicrosurfaceMaterial:
     if np.linalg.norm(direction) == 0:
         raise r.fail("slope_direction", "must be non-zero")
     moments = r.string("height_moments", "table", choices=("table", "log-fit"))
-    transfer = None
+    transfer, transfer_scale = None, 1.0
     xr = r.child("transfer")
     if xr is not None:
         from prefilter.microsurface.transfer import TRANSFER_FUNCTIONS
 
         name = xr.string("function", required=True, choices=tuple(TRANSFER_FUNCTIONS))
-        params = {key: xr.number(key) for key in xr.table if key != "function"}
+        transfer_scale = xr.number("scale", 1.0, lo=0.0)
+        params = {key: xr.number(key) for key in xr.table if key not in ("function", "scale")}
         try:
             transfer = TRANSFER_FUNCTIONS[name](**params)
         except TypeError as exc:
             raise xr.fail("function", f"bad parameters for {name}: {exc}") from None
         xr.finish()
-    environment = None
+    environment, intensity = None, 1.0
     er = r.child("irradiance")
     if er is not None:
         environment = Path(er.string("environment", required=True))
         environment = environment if environment.is_absolute() else base_dir / environment
         if not environment.is_file():
             raise er.fail("environment", f"file not found: {environment}")
+        intensity = er.number("intensity", 1.0, lo=0.0)
         er.finish()
     return MicrosurfaceMaterial(
         height,
@@ -253,5 +265,7 @@ def parse_microsurface(r: Reader, base_dir: Path) -> MicrosurfaceMaterial:
         (float(direction[0]), float(direction[1])),
         moments,
         transfer,
+        transfer_scale,
         environment,
+        intensity,
     )

@@ -25,6 +25,8 @@
 #ifdef MS_IRRADIANCE
 #include "microsurface/irradiance.glsl"
 uniform vec3 u_sh[9];
+// Environment maps are z-up (irradiance.py), scenes y-up: env (x, y, z) = world (x, -z, y).
+const mat3 MS_ENV_FROM_WORLD = mat3(vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), vec3(0.0, -1.0, 0.0));
 #endif
 
 #ifndef MS_MAX_STEPS
@@ -119,7 +121,7 @@ void main() {
     vec3 slopeCov = vec3(ms_slopeVariance, 0.0, ms_slopeVariance);
 #ifdef MS_TRANSFER
     {
-        vec4 moments = ms_transferMoments(u_transferTable, fg.w, ms_transferSigma, u_transferRange);
+        vec4 moments = ms_transfer(fg.w, ms_transferSigma);
         float hMean;
         vec2 slopeMean;
         ms_transferStats(moments, slope, slopeCov, hMean, heightVariance, slopeMean, slopeCov);
@@ -146,7 +148,7 @@ void main() {
 #endif
     vec4 albedo = ms_combine(c0, ch, cs);
 #ifdef MS_IRRADIANCE
-    vec3 radiance = albedo.rgb * ms_irradianceSH(u_sh, worldNormal) / MS_PI;
+    vec3 radiance = albedo.rgb * ms_irradianceSH(u_sh, MS_ENV_FROM_WORLD * worldNormal) / MS_PI;
 #else
     vec3 radiance = albedo.rgb * sh_ambient;
     for (int j = 0; j < SH_MAX_LIGHTS; ++j) {
@@ -178,7 +180,7 @@ void main() {
 #ifdef MS_IRRADIANCE
     mat3 worldFrame = mat3(normalize(u_worldNormalFromObject * frame[0]), normalize(u_worldNormalFromObject * frame[1]),
                            normalize(u_worldNormalFromObject * frame[2]));
-    vec3 radiance = albedo.rgb * ms_filteredIrradianceSH(u_sh, worldFrame, slope, slopeCov) / MS_PI;
+    vec3 radiance = albedo.rgb * ms_filteredIrradianceSH(u_sh, MS_ENV_FROM_WORLD * worldFrame, slope, slopeCov) / MS_PI;
 #else
     vec3 radiance = albedo.rgb * sh_ambient;
     for (int j = 0; j < SH_MAX_LIGHTS; ++j) {
@@ -200,7 +202,7 @@ void main() {
     vec3 coarseCov = vec3(ms_coarseSlopeVariance, 0.0, ms_coarseSlopeVariance);
     float coarseVariance = ms_coarseHeightVariance;
 #ifdef MS_TRANSFER
-    vec4 transferMoments = ms_transferMoments(u_transferTable, fg.w, ms_transferSigma, u_transferRange);
+    vec4 transferMoments = ms_transfer(fg.w, ms_transferSigma);
     coarseCov *= transferMoments.w;
     coarseVariance *= transferMoments.z * transferMoments.z;
 #endif
@@ -230,7 +232,7 @@ void main() {
 #ifdef MS_IRRADIANCE
     mat3 worldFrame = mat3(normalize(u_worldNormalFromObject * frame[0]), normalize(u_worldNormalFromObject * frame[1]),
                            normalize(u_worldNormalFromObject * frame[2]));
-    vec3 radiance = albedoView.rgb * ms_filteredIrradianceSH(u_sh, worldFrame, visMean, visCov) / MS_PI;
+    vec3 radiance = albedoView.rgb * ms_filteredIrradianceSH(u_sh, MS_ENV_FROM_WORLD * worldFrame, visMean, visCov) / MS_PI;
 #else
     vec3 radiance = albedoView.rgb * sh_ambient;
     vec2 nodes[9];
