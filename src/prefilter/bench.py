@@ -28,6 +28,14 @@ from prefilter.metrics import compare
 from prefilter.scene import Scene, preset_names, resolve_scene
 
 FAR_SCALE = 16.0
+# Microsurface presets ray-march explicit geometry in every reference pass (0.2-1.2 s per pass at 256 px on
+# llvmpipe): their references use at most SURFACE_SPP samples at SURFACE_SIZE unless --size is given.
+SURFACE_TAG = "heitz-surface"
+SURFACE_SPP = 256
+SURFACE_SIZE = 256
+STUDY_SPP = 64  # the microsurface studies (zoom, log fit) render many references
+ZOOM_PRESET = "micro-heights-sphere"
+FIT_PRESET = "micro-heights-terrain"
 QUANT_BITS = (6, 8, 10, 12, 16)
 STUDY_PRESETS = ("wood-teapot", "marble-teapot", "planet")
 FLIGHT_PRESET = "seascape"
@@ -40,7 +48,16 @@ def _scaled_texture(scene: Scene, factor: float) -> Scene:
     )
 
 
+def surface_size(scene: Scene, size) -> tuple[int, int]:
+    if size:
+        return size
+    w, h = scene.size
+    return SURFACE_SIZE, max(8, round(SURFACE_SIZE * h / w))
+
+
 def bench_preset(scene: Scene, size, spp: int, frames: int) -> dict:
+    if SURFACE_TAG in scene.tags:
+        size, spp = surface_size(scene, size), min(spp, SURFACE_SPP)
     modes = scene_modes(scene)
     filtered = scene.technique_modes()
     renderer = Renderer(scene, size)
@@ -91,6 +108,10 @@ def bench_preset(scene: Scene, size, spp: int, frames: int) -> dict:
         )
         if "gaussian-sigma" in scene_modes(scene, diagnostics=True):
             entry["sigma_split"] = sigma_split(scene, size, result.mask)
+    if "surface-filter" in filtered:
+        checks["surface_flip_le_half_texture_filter"] = flip["surface-filter"] <= 0.5 * flip["texture-filter"]
+        checks["surface_flip_le_third_naive"] = flip["surface-filter"] <= flip["naive"] / 3.0
+        checks["surface_time_le_1.5_naive"] = metrics["surface-filter"]["ms"] <= 1.5 * metrics["naive"]["ms"]
     entry["checks"] = checks
     return entry
 
@@ -241,28 +262,87 @@ def distance_study(scene: Scene, size, spp: int, plot_path: Path | None, count: 
     finally:
         renderer.release()
     if plot_path is not None:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
         finite = [r for r in rows if np.isfinite(r["distance"])]
-        fig, ax = plt.subplots(figsize=(7, 4.2), dpi=120)
-        for mode in modes:
-            ax.plot([r["distance"] for r in finite], [r[mode] for r in finite], marker="o", ms=3, label=mode)
-        ax.set_xscale("log")
-        ax.set_xlabel("distance to the ground along the view's centre ray")
-        ax.set_ylabel(f"mean FLIP against {spp}-spp reference")
-        ax.set_title(f"{scene.name}: error against viewing distance")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=8)
-        fig.tight_layout()
-        plot_path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = plot_path.with_name(f".{plot_path.name}.tmp.png")
-        fig.savefig(tmp)
-        plt.close(fig)
-        os.replace(tmp, plot_path)
+        title = f"{scene.name}: error against viewing distance"
+        _plot_rows(finite, modes, plot_path, title, "distance to the ground along the view's centre ray", spp)
     return {"rows": rows, "plot": str(plot_path) if plot_path else None}
+
+
+def zoom_study(scene: Scene, size, spp: int, plot_path: Path | None, count: int = 8) -> dict:
+    """Heitz et al. Figs. 1, 16: the camera moves along its view ray from close up (the microgeometry spans
+    many pixels) to far (it is far below a pixel); FLIP of every mode against the reference at each distance.
+    The filtered model must follow the reference without a jump where octaves pass from geometry to
+    statistics."""
+    size, spp = surface_size(scene, size), min(spp, STUDY_SPP)
+    camera = scene.camera
+    axis = (camera.eye - camera.target) / np.linalg.norm(camera.eye - camera.target)
+    modes = scene_modes(scene)
+    rows = []
+    for distance in np.geomspace(1.35, 24.0, count):
+        zoomed = replace(scene, camera=replace(camera, eye=camera.target + distance * axis))
+        renderer = Renderer(zoomed, size)
+        try:
+            ref = renderer.reference(spp)
+            mask = coverage_mask(ref)
+            ref_rgb = composite(ref, scene.background)
+            row = {"distance": float(distance)}
+            for mode in modes:
+                image = composite(renderer.render(mode), scene.background)
+                row[mode] = float(compare(image, ref_rgb, mask)["flip"])
+            rows.append(row)
+        finally:
+            renderer.release()
+    if plot_path is not None:
+        _plot_rows(rows, modes, plot_path, f"{scene.name}: error along a zoom", "camera distance", spp)
+    steps = [abs(b["surface-filter"] - a["surface-filter"]) for a, b in zip(rows, rows[1:], strict=False)]
+    return {
+        "rows": rows,
+        "max_step_surface_filter": max(steps),
+        "plot": str(plot_path) if plot_path else None,
+    }
+
+
+def log_fit_study(scene: Scene, size, spp: int) -> dict:
+    """D_h's moments from the exact quadrature table against the paper's log fit (eqs. 16-17)."""
+    size, spp = surface_size(scene, size), min(spp, STUDY_SPP)
+    result = {}
+    for moments in ("table", "log-fit"):
+        variant = replace(
+            scene,
+            objects=[replace(o, material=replace(o.material, height_moments=moments)) for o in scene.objects],
+        )
+        renderer = Renderer(variant, size)
+        try:
+            ref = renderer.reference(spp)
+            mask = coverage_mask(ref)
+            image = composite(renderer.render("surface-filter"), scene.background)
+            result[moments] = float(compare(image, composite(ref, scene.background), mask)["flip"])
+        finally:
+            renderer.release()
+    return result
+
+
+def _plot_rows(rows: list[dict], modes: list[str], path: Path, title: str, xlabel: str, spp: int) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.2), dpi=120)
+    for mode in modes:
+        ax.plot([r["distance"] for r in rows], [r[mode] for r in rows], marker="o", ms=3, label=mode)
+    ax.set_xscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(f"mean FLIP against {spp}-spp reference")
+    ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    fig.savefig(tmp)
+    plt.close(fig)
+    os.replace(tmp, path)
 
 
 def run_bench(
@@ -334,6 +414,20 @@ def run_bench(
     if DISTANCE_PRESET in names:
         plot = Path(plots) / "error-vs-distance.png" if plots else None
         studies["distance"] = distance_study(resolve_scene(DISTANCE_PRESET), size, min(spp, 256), plot)
+    if ZOOM_PRESET in names:
+        plot = Path(plots) / "microsurface-zoom.png" if plots else None
+        studies["zoom"] = zoom_study(resolve_scene(ZOOM_PRESET), size, spp, plot)
+    if FIT_PRESET in names:
+        studies["height_moments"] = log_fit_study(resolve_scene(FIT_PRESET), size, spp)
+    if any(SURFACE_TAG in s.tags for s in scenes) and plots:
+        from prefilter.microsurface.error_analysis import plot_error_vs_frequency
+
+        path = Path(plots) / "gaussian-approximation-error.png"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        errors = plot_error_vs_frequency(path)
+        studies["gaussian_approximation"] = {
+            f"{surface} {theta:g}deg": float(np.max(e["error"])) for (surface, theta), e in errors.items()
+        }
     results["studies"] = studies
     if studies:
         console.print_json(json.dumps(studies))

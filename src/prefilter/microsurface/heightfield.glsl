@@ -197,30 +197,33 @@ float ms_gapBound(vec3 q) {
 #endif
 }
 
-// Parameter range [t0, t1] of the ray o + t d inside the slab |altitude| <= bound (t1 < t0: none).
-vec2 ms_slab(vec3 o, vec3 d, float bound) {
+// Parameter range [t0, t1] of the ray o + t d inside the slab |altitude| <= bound (t1 < t0: none); z = 1
+// when t1 is where the ray reaches the slab's floor (so a primary ray surely meets the surface by then).
+vec3 ms_slab(vec3 o, vec3 d, float bound) {
 #ifdef MS_SPHERE
     float b = dot(o, d);
     float c = dot(o, o);
     float outer = b * b - c + (ms_radius + bound) * (ms_radius + bound);
-    if (outer < 0.0) return vec2(1.0, -1.0);
+    if (outer < 0.0) return vec3(1.0, -1.0, 0.0);
     float t0 = max(-b - sqrt(outer), 0.0);
     float inner = b * b - c + max(ms_radius - bound, 0.0) * max(ms_radius - bound, 0.0);
-    float t1 = inner > 0.0 && -b - sqrt(inner) > 0.0 ? -b - sqrt(inner) : -b + sqrt(outer);
-    return vec2(t0, t1);
+    bool floorHit = inner > 0.0 && -b - sqrt(inner) > 0.0;
+    return floorHit ? vec3(t0, -b - sqrt(inner), 1.0) : vec3(t0, -b + sqrt(outer), 0.0);
 #else
-    if (abs(d.y) < 1e-8) return abs(o.y) <= bound ? vec2(0.0, 1e8) : vec2(1.0, -1.0);
+    if (abs(d.y) < 1e-8) return abs(o.y) <= bound ? vec3(0.0, 1e8, 0.0) : vec3(1.0, -1.0, 0.0);
     float ta = (bound - o.y) / d.y;
     float tb = (-bound - o.y) / d.y;
-    return vec2(max(min(ta, tb), 0.0), max(ta, tb));
+    return vec3(max(min(ta, tb), 0.0), max(ta, tb), d.y < 0.0 ? 1.0 : 0.0);
 #endif
 }
 
-// First t in [t0, t1] where the ray o + t d (|d| = 1) meets the surface, or -1. Steps are the gap over
+// First t in [t0, t1] = slab.xy where the ray o + t d (|d| = 1) meets the surface, or -1. Steps are the gap over
 // the largest rate at which the gap can shrink, |d·n| + slopeBound |d_tangent|; a crossing is refined by
 // five secant steps. After maxSteps without a crossing a primary ray returns its current t (just above
 // the surface: a near miss rather than a hole) and a shadow ray -1 (unoccluded).
-float ms_march(vec3 o, vec3 d, float t0, float t1, int maxSteps, bool primary) {
+float ms_march(vec3 o, vec3 d, vec3 slab, int maxSteps, bool primary) {
+    float t0 = slab.x;
+    float t1 = slab.y;
     float minStep = 2e-4 * max(ms_heightBound, 1e-6);
     float t = t0;
     float gap = ms_gapBound(o + t * d);
@@ -254,17 +257,21 @@ float ms_march(vec3 o, vec3 d, float t0, float t1, int maxSteps, bool primary) {
             }
             return b;
         }
-        if (t >= t1) return -1.0;
+        if (t >= t1) return primary && slab.z > 0.5 ? t1 : -1.0;  // float error at a thin slab's floor
     }
     return primary ? t : -1.0;
 }
 
-// 1 if the light direction l is unoccluded from the surface point q, else 0.
+// 1 if the light direction l is unoccluded from the surface point q, else 0. The ray starts a little above
+// the surface at q (the marcher's hit may lie just below it); below float32's resolution at q (a nearly
+// flat coarse surface far away) there is nothing to shadow.
 float ms_shadow(vec3 q, vec3 l, int maxSteps) {
-    if (ms_heightBound <= 0.0) return 1.0;
+    float eps = 2e-6 * (length(q) + 1.0);
+    if (ms_heightBound <= 8.0 * eps) return 1.0;
     vec3 n = ms_macroNormal(q);
-    vec3 o = q + n * (1e-3 * ms_heightBound);
-    vec2 slab = ms_slab(o, l, ms_heightBound);
+    vec3 o = q + n * (max(-ms_gap(q), 0.0) + max(1e-3 * ms_heightBound, eps));
+    vec3 slab = ms_slab(o, l, ms_heightBound);
     if (slab.y <= slab.x) return 1.0;
-    return ms_march(o, l, 2e-3 * ms_heightBound, slab.y, maxSteps, false) < 0.0 ? 1.0 : 0.0;
+    slab.x = max(2e-3 * ms_heightBound, 2.0 * eps);
+    return ms_march(o, l, slab, maxSteps, false) < 0.0 ? 1.0 : 0.0;
 }

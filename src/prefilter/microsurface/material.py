@@ -128,9 +128,12 @@ class MicrosurfaceMaterial:
                 self.transfer_scale * float(np.max(np.abs(self.transfer.g_prime(v)))),
             )
         if self.environment is not None:
-            from prefilter.microsurface.irradiance import read_environment, sh9_project, sh_uniform
-
-            from prefilter.microsurface.irradiance import irradiance_sh
+            from prefilter.microsurface.irradiance import (
+                irradiance_sh,
+                read_environment,
+                sh9_project,
+                sh_uniform,
+            )
 
             coeffs = sh9_project(read_environment(self.environment))
             # exposure: a white Lambertian facing up reflects radiance `intensity` (E_up = π · intensity)

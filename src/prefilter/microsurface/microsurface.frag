@@ -105,9 +105,9 @@ void main() {
 #endif
     vec3 d = u_eyeObject.w > 0.5 ? normalize(p0 - u_eyeObject.xyz) : normalize(u_eyeObject.xyz);
     vec3 o = u_eyeObject.w > 0.5 ? u_eyeObject.xyz : p0 - d * (4.0 * (ms_radius + ms_heightBound) + 1.0);
-    vec2 slab = ms_slab(o, d, ms_heightBound);
+    vec3 slab = ms_slab(o, d, ms_heightBound);
     if (slab.y < slab.x) discard;
-    float t = ms_march(o, d, slab.x, slab.y, MS_MAX_STEPS, true);
+    float t = ms_march(o, d, slab, MS_MAX_STEPS, true);
     if (t < 0.0) discard;
     vec3 q = o + t * d;
     vec3 p = ms_project(q);
