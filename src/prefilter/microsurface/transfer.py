@@ -56,12 +56,12 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-import moderngl
 import numpy as np
 from scipy.signal import fftconvolve
 from scipy.special import expit
 
 from prefilter.bake_cache import cached
+from prefilter.colormap.gaussian import PreconvolvedMap
 
 BAKE_VERSION = 1
 
@@ -156,50 +156,17 @@ def _constructor(name: str) -> Callable[..., TransferFunction]:
 TRANSFER_FUNCTIONS: dict[str, Callable[..., TransferFunction]] = {name: _constructor(name) for name in _KINDS}
 
 
-@dataclass
-class PreconvolvedTransfer:
-    data: np.ndarray  # (n_sigma, n_mu, 4) float32: E[g], E[g²], E[g′], E[g′²] under N(μ_i, σ_j²)
-    sigma_max: float
-    mu_range: tuple[float, float]
+class PreconvolvedTransfer(PreconvolvedMap):
+    """(n_sigma, n_mu, 4) float32: E[g], E[g²], E[g′], E[g′²] under N(μ_i, σ_j²); the layout, texture and
+    NumPy lookup of a clamp-table PreconvolvedMap (colormap/gaussian.py)."""
+
+    def __init__(self, data: np.ndarray, sigma_max: float, mu_range: tuple[float, float]):
+        super().__init__(data, "clamp", sigma_max, mu_range)
 
     @property
     def range_uniform(self) -> tuple[float, float, float]:
         """The `range` argument of ms_transferMoments: (lo, hi, sigma_max)."""
         return (*self.mu_range, self.sigma_max)
-
-    def mu_nodes(self) -> np.ndarray:
-        lo, hi = self.mu_range
-        n_mu = self.data.shape[1]
-        return lo + (np.arange(n_mu) + 0.5) * (hi - lo) / n_mu
-
-    def sigma_nodes(self) -> np.ndarray:
-        return self.sigma_max * np.arange(self.data.shape[0]) / (self.data.shape[0] - 1)
-
-    def upload(self, ctx: moderngl.Context) -> moderngl.Texture:
-        """RGBA32F, n_mu x n_sigma, LINEAR, clamp-to-edge."""
-        n_sigma, n_mu, _ = self.data.shape
-        texture = ctx.texture(
-            (n_mu, n_sigma), 4, np.ascontiguousarray(self.data, np.float32).tobytes(), dtype="f4"
-        )
-        texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
-        texture.repeat_x = False
-        texture.repeat_y = False
-        return texture
-
-    def lookup(self, mu, sigma) -> np.ndarray:
-        """NumPy twin of ms_transferMoments (bilinear, half-texel remapping, clamp-to-edge); (..., 4)."""
-        n_sigma, n_mu, _ = self.data.shape
-        lo, hi = self.mu_range
-        mu, sigma = np.broadcast_arrays(np.asarray(mu, np.float64), np.asarray(sigma, np.float64))
-        x = np.clip((mu - lo) / (hi - lo) * n_mu - 0.5, 0.0, n_mu - 1.0)
-        y = np.clip(sigma / self.sigma_max, 0.0, 1.0) * (n_sigma - 1)
-        x0 = np.minimum(np.floor(x).astype(int), n_mu - 2)
-        y0 = np.minimum(np.floor(y).astype(int), n_sigma - 2)
-        tx, ty = (x - x0)[..., None], (y - y0)[..., None]
-        d = self.data.astype(np.float64)
-        row0 = (1 - tx) * d[y0, x0] + tx * d[y0, x0 + 1]
-        row1 = (1 - tx) * d[y0 + 1, x0] + tx * d[y0 + 1, x0 + 1]
-        return (1 - ty) * row0 + ty * row1
 
 
 def _bake(

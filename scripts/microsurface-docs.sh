@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Regenerate the figures of docs/microsurface.md: `prefilter compare` on the microsurface presets
+# (256 px, SPP samples, default 64: every reference pass ray-marches the explicit microgeometry), the
+# march-steps diagnostic, and the plots that `prefilter bench` writes
+# (zoom sweep, Gaussian-approximation error) copied from out/bench if they exist.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+SPP="${SPP:-64}"
+mkdir -p docs/images/microsurface out/docs
+for preset in micro-heights-terrain micro-heights-sphere micro-slopes-sphere micro-snake-sphere \
+              micro-irradiance-terrain micro-moss-sphere micro-sponge-sphere; do
+  size=256x256
+  case "$preset" in *terrain*) size=256x192 ;; esac
+  .venv/bin/prefilter compare "$preset" --size "$size" --spp "$SPP" -o "out/docs/$preset" | tee "out/docs/$preset.md"
+  cp "out/docs/$preset/strip.png" "docs/images/microsurface/$preset.png"
+  cp "out/docs/$preset/flip.png" "docs/images/microsurface/$preset-flip.png"
+done
+.venv/bin/prefilter render micro-heights-sphere --mode march-steps --size 256x256 -o docs/images/microsurface/march-steps.png
+for plot in microsurface-zoom.png gaussian-approximation-error.png; do
+  if [ -f "out/bench/$plot" ]; then cp "out/bench/$plot" docs/images/microsurface/; fi
+done
