@@ -120,11 +120,11 @@ void main() {
     float heightVariance = ms_heightVariance;
     vec3 slopeCov = vec3(ms_slopeVariance, 0.0, ms_slopeVariance);
 #ifdef MS_TRANSFER
+    vec4 transferMoments = ms_transfer(fg.w, ms_transferSigma);  // one lookup, also used by surface-filter
     {
-        vec4 moments = ms_transfer(fg.w, ms_transferSigma);
         float hMean;
         vec2 slopeMean;
-        ms_transferStats(moments, slope, slopeCov, hMean, heightVariance, slopeMean, slopeCov);
+        ms_transferStats(transferMoments, slope, slopeCov, hMean, heightVariance, slopeMean, slopeCov);
         h = hMean;
         slope = slopeMean;
     }
@@ -133,6 +133,10 @@ void main() {
     vec3 normal = normalize(frame * vec3(-slope, 1.0));  // object space
     vec3 worldNormal = normalize(u_worldNormalFromObject * normal);
     vec3 wo = -d * frame;  // view direction in the macro tangent frame
+#ifdef MS_IRRADIANCE
+    mat3 worldFrame = mat3(normalize(u_worldNormalFromObject * frame[0]), normalize(u_worldNormalFromObject * frame[1]),
+                           normalize(u_worldNormalFromObject * frame[2]));
+#endif
     vec2 dir = u_slopeDirection;
 
     vec4 c0 = vec4(0.0), ch = vec4(0.0), cs = vec4(0.0);
@@ -178,8 +182,6 @@ void main() {
 #endif
     vec4 albedo = ms_combine(c0, ch, cs);
 #ifdef MS_IRRADIANCE
-    mat3 worldFrame = mat3(normalize(u_worldNormalFromObject * frame[0]), normalize(u_worldNormalFromObject * frame[1]),
-                           normalize(u_worldNormalFromObject * frame[2]));
     vec3 radiance = albedo.rgb * ms_filteredIrradianceSH(u_sh, MS_ENV_FROM_WORLD * worldFrame, slope, slopeCov) / MS_PI;
 #else
     vec3 radiance = albedo.rgb * sh_ambient;
@@ -202,7 +204,6 @@ void main() {
     vec3 coarseCov = vec3(ms_coarseSlopeVariance, 0.0, ms_coarseSlopeVariance);
     float coarseVariance = ms_coarseHeightVariance;
 #ifdef MS_TRANSFER
-    vec4 transferMoments = ms_transfer(fg.w, ms_transferSigma);
     coarseCov *= transferMoments.w;
     coarseVariance *= transferMoments.z * transferMoments.z;
 #endif
@@ -230,8 +231,6 @@ void main() {
 #endif
     vec4 albedoView = ms_combine(c0, ch, cs);
 #ifdef MS_IRRADIANCE
-    mat3 worldFrame = mat3(normalize(u_worldNormalFromObject * frame[0]), normalize(u_worldNormalFromObject * frame[1]),
-                           normalize(u_worldNormalFromObject * frame[2]));
     vec3 radiance = albedoView.rgb * ms_filteredIrradianceSH(u_sh, MS_ENV_FROM_WORLD * worldFrame, visMean, visCov) / MS_PI;
 #else
     vec3 radiance = albedoView.rgb * sh_ambient;
