@@ -9,6 +9,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import threading
 from collections.abc import Callable
 from pathlib import Path
 
@@ -40,12 +41,36 @@ def cached(
         except (OSError, ValueError):
             path.unlink(missing_ok=True)  # a damaged entry is recomputed
     result = compute()
+    _store(path, lambda f: np.save(f, result))
+    return result
+
+
+def cached_arrays(
+    kind: str,
+    params: dict,
+    arrays: tuple[np.ndarray, ...],
+    compute: Callable[[], dict[str, np.ndarray]],
+) -> dict[str, np.ndarray]:
+    """`cached` for a bake made of several named arrays (stored as one .npz)."""
+    path = cache_dir() / f"{kind}-{input_hash(kind, params, arrays)}.npz"
+    if path.is_file():
+        try:
+            with np.load(path) as data:
+                return {name: data[name] for name in data.files}
+        except (OSError, ValueError, KeyError):
+            path.unlink(missing_ok=True)
+    result = compute()
+    _store(path, lambda f: np.savez(f, **result))
+    return result
+
+
+def _store(path: Path, write: Callable) -> None:
+    """Write atomically (temp file, then rename), so an interrupted bake leaves no damaged entry."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
         with open(tmp, "wb") as f:
-            np.save(f, result)
+            write(f)
         os.replace(tmp, path)
     except OSError:
         pass  # a read-only cache only costs time
-    return result

@@ -10,6 +10,9 @@ Hart et al. 1999 studies on top: coordinate precision (§4.3, Fig. 10), the redu
 (§4.2, Fig. 11) and temporal flicker over a flight towards the horizon (§4.4).
 Targets (issue #2): best filtered FLIP <= 1/2 point FLIP; filtered time <= 1.2 x point;
 reference time >= 300 x filtered; near/far filtered time within 10 %.
+Fournier presets (issue #5): multilobe FLIP <= 1/2 naive, below the best single-lobe baseline where tagged
+"vs-single-lobe", multilobe time <= 3 x unfiltered; the paper's timing table as ratios to "no texture";
+256x256 pyramids bake in <= 60 s.
 """
 
 from __future__ import annotations
@@ -36,6 +39,10 @@ SURFACE_SIZE = 256
 STUDY_SPP = 64  # the microsurface studies (zoom, log fit) render many references
 ZOOM_PRESET = "micro-heights-sphere"
 FIT_PRESET = "micro-heights-terrain"
+# Fournier presets (issue #5): multilobe must beat the single-lobe baselines on those tagged so.
+FOURNIER_TAG = "fournier"
+SINGLE_LOBE_TAG = "vs-single-lobe"
+BUILD_STUDY_SIZE = 256  # "the pyramid of a 256x256 normal map with 7 peaks builds in <= 60 s"
 QUANT_BITS = (6, 8, 10, 12, 16)
 STUDY_PRESETS = ("wood-teapot", "marble-teapot", "planet")
 FLIGHT_PRESET = "seascape"
@@ -112,8 +119,61 @@ def bench_preset(scene: Scene, size, spp: int, frames: int) -> dict:
         checks["surface_flip_le_half_texture_filter"] = flip["surface-filter"] <= 0.5 * flip["texture-filter"]
         checks["surface_flip_le_third_naive"] = flip["surface-filter"] <= flip["naive"] / 3.0
         checks["surface_time_le_1.5_naive"] = metrics["surface-filter"]["ms"] <= 1.5 * metrics["naive"]["ms"]
+    if "multilobe" in filtered:
+        entry["best_single_lobe"] = single = min(("toksvig", "lean"), key=flip.get)
+        checks["multilobe_flip_le_half_naive"] = flip["multilobe"] <= 0.5 * flip["naive"]
+        if SINGLE_LOBE_TAG in scene.tags:
+            checks["multilobe_flip_lt_single_lobe"] = flip["multilobe"] < flip[single]
+        entry["fournier_timing"] = fournier_timing(scene, size, frames)
+        checks["multilobe_time_le_3_unfiltered"] = (
+            entry["fournier_timing"]["filtered"] <= 3.0 * (entry["fournier_timing"]["unfiltered"])
+        )
     entry["checks"] = checks
     return entry
+
+
+def fournier_timing(scene: Scene, size, frames: int) -> dict:
+    """Fournier's timing table as ratios to "no texture": unfiltered (point), filtered (multilobe) and 16x
+    supersampled (4 x 4 jittered point passes), measured in one run."""
+    renderer = Renderer(scene, size)
+    try:
+        ms = renderer.time_modes(["flat", "point", "multilobe"], frames)
+        supersampled = renderer.time_reference(16)
+    finally:
+        renderer.release()
+    return {
+        "no_texture_ms": ms["flat"],
+        "unfiltered": ms["point"] / ms["flat"],
+        "filtered": ms["multilobe"] / ms["flat"],
+        "supersampled_16": supersampled / ms["flat"],
+    }
+
+
+def pyramid_build_study(size: int = BUILD_STUDY_SIZE) -> dict:
+    """Bake 256x256 pyramids (7 peaks, default options, local Dask) into an empty cache and time them."""
+    import tempfile
+
+    from prefilter.normals.normal_maps import generate
+    from prefilter.normals.pyramid import PyramidOptions, build_pyramid
+
+    maps = {
+        "twill": generate("twill", size=[size, size], threads=size // 4),
+        "stochastic": generate("stochastic", size=[size, size], rms_slope=0.5),
+    }
+    out = {}
+    previous = os.environ.get("PREFILTER_CACHE")
+    try:
+        for name, surface in maps.items():
+            with tempfile.TemporaryDirectory() as cache:
+                os.environ["PREFILTER_CACHE"] = cache
+                pyramid = build_pyramid(surface, PyramidOptions())
+                out[name] = pyramid.report.as_dict()
+    finally:
+        if previous is None:
+            os.environ.pop("PREFILTER_CACHE", None)
+        else:
+            os.environ["PREFILTER_CACHE"] = previous
+    return out
 
 
 def equal_time_study(scene: Scene, size, spp: int, metrics: dict, result) -> dict:
@@ -428,6 +488,13 @@ def run_bench(
         studies["gaussian_approximation"] = {
             f"{surface} {theta:g}deg": float(np.max(e["error"])) for (surface, theta), e in errors.items()
         }
+    if any(FOURNIER_TAG in s.tags for s in scenes):
+        studies["pyramid_build"] = build = pyramid_build_study()
+        for name, report in build.items():
+            console.print(
+                f"pyramid {name} {BUILD_STUDY_SIZE}x{BUILD_STUDY_SIZE}: {report['seconds']:.1f} s "
+                f"(target <= 60 s: {'yes' if report['seconds'] <= 60 else 'NO'})"
+            )
     results["studies"] = studies
     if studies:
         console.print_json(json.dumps(studies))

@@ -1,4 +1,4 @@
-"""prefilter command line: list | render | compare | bench.
+"""prefilter command line: list | render | compare | bench | bake.
 
 Errors the user can act on are printed as one line `prefilter: error: ...`; invalid scene files and
 arguments exit 2, other failures 1. Nothing is written when a command fails.
@@ -121,6 +121,35 @@ def cmd_bench(args: argparse.Namespace) -> int:
     )
 
 
+def cmd_bake(args: argparse.Namespace) -> int:
+    """Bake the normal-distribution pyramids of a scene's normal-mapped objects (Fournier 1992 §2.4)."""
+    import json
+    import os
+    from dataclasses import replace
+
+    from prefilter.scene import resolve_scene
+
+    scene = resolve_scene(args.scene)
+    objects = [obj for obj in scene.objects if getattr(obj.material, "surface", None) is not None]
+    if not objects:
+        raise PrefilterError(f"{scene.source}: no object has a normal-map material to bake")
+    reports = {}
+    for obj in objects:
+        material = replace(obj.material, scheduler=args.scheduler, _pyramid=None)
+        print(f"{scene.name}: {obj.name}: {material.surface.name}, {material.options.max_peaks} peaks")
+        pyramid = material.pyramid(progress=True)
+        for line in pyramid.report.lines():
+            print("  " + line)
+        reports[obj.name] = pyramid.report.as_dict()
+    if args.json:
+        path = Path(args.json)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".{path.name}.tmp")
+        tmp.write_text(json.dumps(reports, indent=2) + "\n")
+        os.replace(tmp, path)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="prefilter",
@@ -181,6 +210,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true", help="small sizes and spp: a smoke run, not a measurement")
     p.add_argument("--plots", default="out/bench", help="directory for the error-vs-distance plot")
     p.set_defaults(func=cmd_bench)
+
+    p = sub.add_parser("bake", help="bake the normal-distribution pyramids of a scene (tiles on Dask)")
+    p.add_argument("scene", help="a preset name or a scene .toml file with normal-map materials")
+    p.add_argument(
+        "--scheduler",
+        default=None,
+        help="synchronous, threads, processes (local, 2 workers), or the address of a running Dask "
+        "scheduler (tcp://host:8786); default: local processes for maps of 128x128 and more",
+    )
+    p.add_argument("--json", default=None, help="also write the bake reports as JSON to this file")
+    p.set_defaults(func=cmd_bake)
     return parser
 
 

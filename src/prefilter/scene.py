@@ -287,6 +287,7 @@ def parse_scene(text: str, source: str, base_dir: Path) -> Scene:
         raise SceneError(f"{source}: TOML syntax error: {exc}") from None
     import prefilter.colormap.tabulated  # noqa: F401  (registers the material types)
     import prefilter.microsurface.material  # noqa: F401
+    import prefilter.normals.material  # noqa: F401
     import prefilter.procedural.hart  # noqa: F401
 
     top = Reader(data, "", source)

@@ -26,7 +26,8 @@ PREAMBLES = {
     "es300": (
         "#version 300 es\n"
         "precision highp float;\nprecision highp int;\nprecision highp sampler2D;\n"
-        "precision highp sampler3D;\nprecision highp usampler2D;\nprecision highp isampler2D;\n"
+        "precision highp sampler3D;\nprecision highp sampler2DArray;\nprecision highp usampler2D;\n"
+        "precision highp isampler2D;\n"
         "#define TARGET_GLES 1\n"
     ),
 }

@@ -75,9 +75,16 @@ class _GPUObject:
     """An object's mesh buffers, material resources and compiled program per mode."""
 
     def __init__(
-        self, ctx: moderngl.Context, obj: SceneObject, mesh: Mesh, target: str, options: RenderOptions
+        self,
+        ctx: moderngl.Context,
+        obj: SceneObject,
+        mesh: Mesh,
+        target: str,
+        options: RenderOptions,
+        light_count: int,
     ):
         self.ctx, self.obj, self.mesh, self.target, self.options = ctx, obj, mesh, target, options
+        self.light_count = light_count
         self.vbo = ctx.buffer(np.ascontiguousarray(mesh.interleaved(), dtype=np.float32).tobytes())
         self.ibo = ctx.buffer(np.ascontiguousarray(mesh.indices, dtype=np.uint32).tobytes())
         self.resources = obj.material.upload(ctx, mesh)
@@ -86,7 +93,11 @@ class _GPUObject:
     def program(self, mode: str) -> tuple[moderngl.Program, moderngl.VertexArray]:
         if mode not in self.programs:
             vertex, fragment = self.obj.material.shader_sources()
-            defines = {mode_define(mode): True, **self.obj.material.defines(self.options)}
+            defines = {
+                mode_define(mode): True,
+                "SH_LIGHT_COUNT": self.light_count,  # lets shaders unroll loops over the lights
+                **self.obj.material.defines(self.options),
+            }
             prog = build_program(self.ctx, vertex, fragment, target=self.target, defines=defines)
             layout, names = [], []
             for name, n in VERTEX_LAYOUT:
@@ -123,7 +134,10 @@ class Renderer:
         self.ctx = ctx = gl_context()
         self.scene, self.options = scene, options or RenderOptions()
         self.size = size or scene.size
-        self.objects = [_GPUObject(ctx, obj, build_mesh(obj), target, self.options) for obj in scene.objects]
+        lights = min(len(scene.lights), 4)
+        self.objects = [
+            _GPUObject(ctx, obj, build_mesh(obj), target, self.options, lights) for obj in scene.objects
+        ]
         self.objects.sort(key=lambda g: g.obj.blend != "opaque")  # opaque first, then "over" in file order
         w, h = self.size
         self.colour = ctx.texture((w, h), 4, dtype="f4")

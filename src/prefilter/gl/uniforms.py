@@ -15,7 +15,11 @@ def set_uniforms(prog: moderngl.Program, values: dict[str, object]) -> None:
         if name not in prog:
             continue
         if isinstance(value, np.ndarray):
-            prog[name].write(np.ascontiguousarray(value, dtype=np.float32).tobytes())
+            data = np.ascontiguousarray(value, dtype=np.float32).ravel()
+            uniform = prog[name]
+            # the compiler may shorten an array whose later elements are never read
+            data = data[: uniform.array_length * uniform.dimension]
+            uniform.write(data.tobytes())
         else:
             prog[name].value = value
 

@@ -1,0 +1,88 @@
+// Lookups in the pyramid of Phong peaks (normals/pyramid.py, Fournier 1992 §2.4).
+//
+// Storage: one RGBA32F 2D texture array, every level in one atlas (level 0 at (0, 0), the others in a
+// column to its right), so any map size works and WebGL2 needs nothing special. nd_level[l] = (atlas x,
+// atlas y, width, height) of level l. Layers for peak k of K: k = (d.x, d.y, amplitude, exponent) with
+// d.z = sqrt(1 - d.x² - d.y²); K + k = horizon slope means (+X, -X, +Y, -Y); 2K + k = their standard
+// deviations. Unused peaks have amplitude 0 and come last.
+//
+// Filtering: the level comes from the footprint (the pixel's Jacobian in base texels: lod = log2 of its
+// longer axis, as MIP mapping does, or, with ND_ANISOTROPY = N > 1, of 1/n of it at each of n <= N
+// samples along that axis, as anisotropic texture units do); within a level, bilinear weights over 4
+// texels; between levels, linear weights over 2 levels. The peaks of all contributing texels are used,
+// each with its amplitude multiplied by its interpolation weight (up to 8 texels x K peaks per sample) —
+// never averaged.
+
+#define ND_MAX_LEVELS 16
+#ifndef ND_ANISOTROPY
+#define ND_ANISOTROPY 1
+#endif
+
+uniform sampler2DArray nd_peaks;
+uniform vec4 nd_level[ND_MAX_LEVELS];
+uniform int nd_levelCount;
+uniform int nd_maxPeaks;
+
+// Wrapped (tiling) texel of a level.
+ivec3 nd_atlasTexel(int level, ivec2 texel, int layer) {
+    vec4 box = nd_level[level];
+    ivec2 size = ivec2(box.zw);
+    ivec2 wrapped = ivec2(texel.x - size.x * int(floor(float(texel.x) / box.z)),
+                          texel.y - size.y * int(floor(float(texel.y) / box.w)));
+    return ivec3(ivec2(box.xy) + wrapped, layer);
+}
+
+vec4 nd_fetch(int level, ivec2 texel, int layer) {
+    return texelFetch(nd_peaks, nd_atlasTexel(level, texel, layer), 0);
+}
+
+vec3 nd_direction(vec4 packedPeak) {
+    return vec3(packedPeak.xy, sqrt(max(1.0 - dot(packedPeak.xy, packedPeak.xy), 0.0)));
+}
+
+// The footprint (uv Jacobian, uv in units of one repeat of the map) as `count` samples spread along its
+// longer axis (uv offsets start + i step), each with the lod of a 1/count share of that axis; count is at
+// most ND_ANISOTROPY and no more than the axes' length ratio (count = 1: isotropic MIP mapping).
+struct NdFootprint {
+    vec2 start;
+    vec2 step;
+    int count;
+    float lod;
+    float magnification;  // weight of the unfiltered base level: 1 below lod -1, 0 above lod 0
+};
+
+NdFootprint nd_footprint(vec2 dUVdx, vec2 dUVdy) {
+    vec2 base = nd_level[0].zw;
+    float lx = length(dUVdx * base), ly = length(dUVdy * base);
+    vec2 major = lx >= ly ? dUVdx : dUVdy;
+    float longer = max(lx, ly), shorter = max(min(lx, ly), 1e-8);
+    NdFootprint f;
+    f.count = int(clamp(ceil(longer / shorter - 0.01), 1.0, float(ND_ANISOTROPY)));
+    f.step = major / float(f.count);
+    f.start = -0.5 * major + 0.5 * f.step;
+    float lod = log2(max(longer / float(f.count), 1e-8));
+    f.lod = clamp(lod, 0.0, float(nd_levelCount - 1));
+    f.magnification = clamp(-lod, 0.0, 1.0);
+    return f;
+}
+
+// The two levels and their weights for a lod (the second weight is 0 at the top level).
+void nd_levelWeights(float lod, out int level0, out vec2 weights) {
+    level0 = min(int(floor(lod)), nd_levelCount - 1);
+    float t = lod - float(level0);
+    if (level0 + 1 >= nd_levelCount) t = 0.0;
+    weights = vec2(1.0 - t, t);
+}
+
+// Lower-left texel of the bilinear 2x2 at `level` and the fractional position within it.
+void nd_bilinear(vec2 uv, int level, out ivec2 texel0, out vec2 f) {
+    vec2 p = uv * nd_level[level].zw - 0.5;
+    vec2 i0 = floor(p);
+    texel0 = ivec2(i0);
+    f = p - i0;
+}
+
+float nd_bilinearWeight(vec2 f, int corner) {
+    vec2 w = vec2(corner % 2 == 1 ? f.x : 1.0 - f.x, corner / 2 == 1 ? f.y : 1.0 - f.y);
+    return w.x * w.y;
+}

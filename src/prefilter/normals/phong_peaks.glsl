@@ -1,0 +1,42 @@
+// Shading a distribution of normals made of Phong peaks (Fournier 1992 §2.2, §4) with soft horizon
+// visibility (§5). Directions are in the tangent frame (+z the geometric normal).
+//
+// A peak (d, a, n) is the density a (n+1)/(2π) max(ω·d, 0)^n over solid angle (normals/peaks.py); a is
+// the fraction of area. One base normal N of the map is the peak (N, 1, n0). A set of peaks is shaded as
+//   Σ_i a_i V_i(l) M_i(v) [ albedo max(d_i·l, 0) + k_s lobe_i(h) l_z / (4 max(l_z, v_z, 0.1)) ] E_light
+// i.e. a Lambertian part at the peak's direction and a microfacet specular part that is LINEAR in the
+// normal density D(h) = Σ a_i lobe_i(h): averaging base normals' shading over a footprint gives exactly
+// the shading of their spread, which is what the pyramid's peaks fit. The denominator depends only on the
+// geometric frame (Neumann's max(l_z, v_z)), so it does not break that linearity.
+//
+// Visibility (§5): a direction w passes the X axis test when its slope in the XZ plane, w_z / |w_x|, is
+// above the horizon slope towards sign(w_x) (+X or -X); likewise for Y; the two are multiplied. With a
+// mean μ and standard deviation σ of the limiting slopes the test is soft: 0 below μ − σ, 1 above μ + σ,
+// linear between (σ = 0: a step). Masked area is dark (not re-ratioed): the unfiltered reference cannot
+// tell which texel is seen instead, and both must agree.
+
+const float ND_PI = 3.14159265358979;
+
+float nd_lobe(float cosAlpha, float n) {
+    return (n + 1.0) / (2.0 * ND_PI) * pow(max(cosAlpha, 0.0), n);
+}
+
+float nd_softStep(float slope, float mean, float deviation) {
+    if (deviation <= 0.0) return slope > mean ? 1.0 : 0.0;
+    return clamp((slope - (mean - deviation)) / (2.0 * deviation), 0.0, 1.0);
+}
+
+// mean/deviation: horizon slopes (+X, -X, +Y, -Y); w: unit tangent-space direction.
+float nd_visibility(vec3 w, vec4 mean, vec4 deviation) {
+    if (w.z <= 0.0) return 0.0;
+    float v = 1.0;
+    if (w.x > 0.0) v *= nd_softStep(w.z / w.x, mean.x, deviation.x);
+    if (w.x < 0.0) v *= nd_softStep(-w.z / w.x, mean.y, deviation.y);
+    if (w.y > 0.0) v *= nd_softStep(w.z / w.y, mean.z, deviation.z);
+    if (w.y < 0.0) v *= nd_softStep(-w.z / w.y, mean.w, deviation.w);
+    return v;
+}
+
+float nd_specularGeometry(vec3 l, vec3 v) {
+    return max(l.z, 0.0) / (4.0 * max(max(l.z, v.z), 0.1));
+}
