@@ -43,6 +43,8 @@ FIT_PRESET = "micro-heights-terrain"
 FOURNIER_TAG = "fournier"
 SINGLE_LOBE_TAG = "vs-single-lobe"
 BUILD_STUDY_SIZE = 256  # "the pyramid of a 256x256 normal map with 7 peaks builds in <= 60 s"
+TRADEOFF_PRESET = "normals-cylinders-plane"
+TRADEOFF = ((7, 4), (7, 2), (7, 1), (4, 4), (4, 1), (2, 1))  # (peaks per texel K, footprint samples)
 QUANT_BITS = (6, 8, 10, 12, 16)
 STUDY_PRESETS = ("wood-teapot", "marble-teapot", "planet")
 FLIGHT_PRESET = "seascape"
@@ -147,6 +149,42 @@ def fournier_timing(scene: Scene, size, frames: int) -> dict:
         "filtered": ms["multilobe"] / ms["flat"],
         "supersampled_16": supersampled / ms["flat"],
     }
+
+
+def multilobe_tradeoff_study(scene: Scene, size, spp: int, frames: int) -> list[dict]:
+    """FLIP and time (as a ratio to point) of multilobe for K peaks per texel and N footprint samples."""
+    material = scene.objects[0].material
+    renderer = Renderer(scene, size)
+    try:
+        reference = renderer.reference(spp)
+        mask = coverage_mask(reference)
+        reference = composite(reference, scene.background)
+    finally:
+        renderer.release()
+    rows = []
+    for peaks, samples in TRADEOFF:
+        variant = replace(
+            material,
+            options=replace(material.options, max_peaks=peaks),
+            anisotropy=samples,
+            _pyramid=None,
+        )
+        s = replace(scene, objects=[replace(scene.objects[0], material=variant)])
+        renderer = Renderer(s, size)
+        try:
+            image = composite(renderer.render("multilobe"), s.background)
+            ms = renderer.time_modes(["point", "multilobe"], frames)
+        finally:
+            renderer.release()
+        rows.append(
+            {
+                "peaks": peaks,
+                "samples": samples,
+                "flip": float(compare(image, reference, mask)["flip"]),
+                "time_vs_point": ms["multilobe"] / ms["point"],
+            }
+        )
+    return rows
 
 
 def pyramid_build_study(size: int = BUILD_STUDY_SIZE) -> dict:
@@ -488,6 +526,10 @@ def run_bench(
         studies["gaussian_approximation"] = {
             f"{surface} {theta:g}deg": float(np.max(e["error"])) for (surface, theta), e in errors.items()
         }
+    if TRADEOFF_PRESET in names:
+        studies["multilobe_tradeoff"] = multilobe_tradeoff_study(
+            resolve_scene(TRADEOFF_PRESET), size, spp, frames
+        )
     if any(FOURNIER_TAG in s.tags for s in scenes):
         studies["pyramid_build"] = build = pyramid_build_study()
         for name, report in build.items():

@@ -12,7 +12,7 @@ and mask every mode.
     [generator] name = "hemispheres|cylinders|twill|stochastic", other keys = its parameters
     uv_scale = [1, 1]   albedo = "#rrggbb"   specular = 0.3 (k_s)   exponent = 100 (n0)   shadowing = false
     [pyramid] max_peaks = 7, rms_tolerance = 0.05, max_tolerance = 0.05, n_theta = 18, n_phi = 72,
-              pole_cap_degrees = 5/12, tile = 32, horizon_distance
+              pole_cap_degrees = 5/12, tile = 32, horizon_distance, exact = "texels" | "field"
 
 type = "multiple-surface" (§4): one set of peaks everywhere. `preset = "velvet" | "silk" | "three-normal"`
 (the paper's table and Fig. 9) or [[peak]] tables (amplitude, direction in the tangent frame with z the
@@ -273,6 +273,7 @@ def _options(r: Reader | None) -> PyramidOptions:
         pole_cap_degrees=r.number("pole_cap_degrees", defaults.pole_cap_degrees, lo=0.0, hi=45.0),
         horizon_distance=distance or None,
         tile=tile,
+        exact=r.string("exact", defaults.exact, choices=("texels", "field")),
     )
     r.finish()
     return options

@@ -35,6 +35,7 @@ import math
 import resource
 import time
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -44,7 +45,7 @@ from prefilter.normals.horizon import horizon_slopes
 from prefilter.normals.normal_maps import SurfaceMap
 from prefilter.normals.peaks import HemisphereGrid, exact_peaks, fit_peaks, lobe
 
-PYRAMID_VERSION = 2
+PYRAMID_VERSION = 3
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,9 @@ class PyramidOptions:
     pole_cap_degrees: float = 5.0 / 12.0
     horizon_distance: int | None = None  # horizon search radius in texels (None: horizon.py's default)
     tile: int = 32  # bake tile side in base texels (a power of two)
+    # which blocks are stored exactly: "texels" (Fournier: at most K distinct base normals) or "field"
+    # (at most K distinct normals of the bilinear field point renders: exact where point is; slower)
+    exact: str = "texels"
 
     def grid(self) -> HemisphereGrid:
         return HemisphereGrid(self.n_theta, self.n_phi, self.pole_cap_degrees)
@@ -170,14 +174,18 @@ def texel_peaks(
     options: PyramidOptions,
     grid: HemisphereGrid,
     values: np.ndarray,
+    candidates: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, float, float]:
     """Peaks (K, 5), horizon statistics (K, 8), rms and max residual ratios for one block of base normals.
 
-    `values` is the block's spread on `grid` (of the reconstructed field; see the module header).
+    `values` is the block's spread on `grid` (of the reconstructed field; see the module header). When at
+    most K of the `candidates` normals (equally weighted) are distinct they are the exact answer;
+    otherwise the spread is fitted.
     """
     m = len(normals)
     weights = np.full(m, 1.0 / m)
-    found = exact_peaks(normals, weights, options.exponent, options.max_peaks)
+    c = len(candidates)
+    found = exact_peaks(candidates, np.full(c, 1.0 / c), options.exponent, options.max_peaks)
     if found is not None:
         stats = None
         if horizons is not None:  # each exact peak owns the base texels with its normal
@@ -242,9 +250,8 @@ def reconstructed_normals(padded: np.ndarray) -> np.ndarray:
     return np.stack(out, axis=2)
 
 
-def texel_spreads(padded: np.ndarray, exponent: float, grid: HemisphereGrid) -> np.ndarray:
-    """(h, w, S): the spread of the reconstructed normal field over each base texel's area."""
-    field = reconstructed_normals(padded)
+def texel_spreads(field: np.ndarray, exponent: float, grid: HemisphereGrid) -> np.ndarray:
+    """(h, w, S): the spread over each base texel's area of the reconstructed field (h, w, 4, 3)."""
     h, w = field.shape[:2]
     out = np.empty((h, w, grid.size))
     for row in range(h):  # a row at a time bounds the memory
@@ -258,7 +265,8 @@ def _bake_tile(padded: np.ndarray, horizons: np.ndarray | None, options: Pyramid
     normals = padded[1:-1, 1:-1]
     h, w = normals.shape[:2]
     k = options.max_peaks
-    spreads = texel_spreads(padded, options.exponent, grid)
+    reconstructed = reconstructed_normals(padded)
+    spreads = texel_spreads(reconstructed, options.exponent, grid)
     out: dict[str, np.ndarray] = {}
     for level in range(_tile_levels(options) + 1):
         step = 1 << level
@@ -279,7 +287,10 @@ def _bake_tile(padded: np.ndarray, horizons: np.ndarray | None, options: Pyramid
                     block = normals[rows, cols].reshape(-1, 3)
                     hblock = None if horizons is None else horizons[rows, cols].reshape(-1, 4)
                     values = spreads[rows, cols].mean(axis=(0, 1))
-                    p, hz, rms, mx = texel_peaks(block, hblock, options, grid, values)
+                    candidates = block
+                    if options.exact == "field":
+                        candidates = reconstructed[rows, cols].reshape(-1, 3)
+                    p, hz, rms, mx = texel_peaks(block, hblock, options, grid, values, candidates)
                     peaks[j, i], horizon[j, i], ratios[j, i] = p, hz, (rms, mx)
         out[f"peaks{level}"] = peaks
         out[f"horizon{level}"] = horizon
@@ -302,7 +313,7 @@ def bake_upper_texel(
         values = (tile_counts[:, None] * tile_spreads).sum(axis=0) / tile_counts.sum()
         flat = normals.reshape(-1, 3)
         hflat = None if horizons is None else horizons.reshape(-1, 4)
-        peaks, horizon, rms, mx = texel_peaks(flat, hflat, options, options.grid(), values=values)
+        peaks, horizon, rms, mx = texel_peaks(flat, hflat, options, options.grid(), values, flat)
         return {"peaks": peaks, "horizon": horizon, "ratios": np.array([rms, mx], np.float32)}
 
     arrays = (normals, tile_spreads, tile_counts) + (() if horizons is None else (horizons,))
@@ -311,6 +322,14 @@ def bake_upper_texel(
 
 
 # -- the whole pyramid -----------------------------------------------------------------------------------
+def _can_spawn() -> bool:
+    """Spawned worker processes re-import __main__: impossible from stdin or an interactive session."""
+    import sys
+
+    main = getattr(sys.modules.get("__main__"), "__file__", None)
+    return main is not None and Path(main).is_file()
+
+
 def _compute(tasks: list, scheduler: str | None, progress: bool, n_texels: int) -> tuple[list, str]:
     import dask
 
@@ -334,7 +353,7 @@ def _compute(tasks: list, scheduler: str | None, progress: bool, n_texels: int) 
                 cluster_progress(futures)
             return client.gather(futures), f"distributed {scheduler}"
     if scheduler is None:
-        scheduler = "processes" if n_texels >= 128 * 128 else "synchronous"
+        scheduler = "processes" if n_texels >= 128 * 128 and _can_spawn() else "synchronous"
     if scheduler not in ("synchronous", "threads", "processes"):
         raise PrefilterError(
             f"scheduler {scheduler!r}: expected synchronous, threads, processes or a tcp:// address"
@@ -396,7 +415,8 @@ def build_pyramid(
         dask.delayed(bake_tile, pure=True)(padded_slice(ty, tx), tile_slice(horizons, ty, tx), options)
         for ty, tx in blocks
     ]
-    tiles, used = _compute(tile_tasks, scheduler, progress, w * h)
+    pending = (len(blocks) - from_cache) * t * t  # texels still to bake
+    tiles, used = _compute(tile_tasks, scheduler, progress, pending)
 
     k = options.max_peaks
     tile_levels = min(_tile_levels(options), len(sizes) - 1)
@@ -439,7 +459,7 @@ def build_pyramid(
                 )
                 where.append((level, j, i))
     if upper:
-        results, _ = _compute(upper, scheduler, False, w * h)
+        results, _ = _compute(upper, scheduler, False, 0 if from_cache == len(blocks) else w * h)
         for (level, j, i), result in zip(where, results, strict=True):
             peaks[level][j, i] = result["peaks"]
             horizon[level][j, i] = result["horizon"]
