@@ -8,7 +8,7 @@
 //                   moments plus the base lobe's 1/n0 (Olano & Baker 2010); soft horizon as TOKSVIG
 //   MODE_MULTILOBE  Fournier: the peaks of 2 levels x 4 texels, amplitudes times interpolation weights,
 //                   per-peak soft shadowing and masking (§2.4, §5)
-//   MODE_PEAK_COUNT diagnostic: peaks shaded per pixel / 56
+//   MODE_PEAK_COUNT diagnostic: peaks shaded per pixel / (56 x footprint samples)
 //   MODE_FLAT       diagnostic, "no texture" of Fournier's timing table: the geometric normal, lobe n0
 // ND_CONSTANT: a multiple surface (§4): one texel of peaks everywhere, no map; point = multilobe = them;
 // the baselines see the moments of their distribution.
@@ -231,7 +231,7 @@ void main() {
 #error "unknown MODE_ define"
 #endif
 #ifdef MODE_PEAK_COUNT
-    colour = vec3(g_peaks / 56.0);
+    colour = vec3(g_peaks / (56.0 * float(ND_ANISOTROPY)));
 #endif
     o_colour = vec4(colour, 1.0);
 }
