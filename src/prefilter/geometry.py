@@ -25,7 +25,6 @@ centre (the sphere's convention above), with vertices split along the seam and a
 
 from __future__ import annotations
 
-import inspect
 import math
 import numbers
 import os
@@ -36,6 +35,7 @@ import numpy as np
 import trimesh
 
 from prefilter import PrefilterError
+from prefilter.registry import call_registered
 
 # Layout of `Mesh.interleaved()`: (vertex attribute, float count) in order.
 VERTEX_LAYOUT = (("in_pos", 3), ("in_nrm", 3), ("in_tan", 4), ("in_uv", 2))
@@ -327,15 +327,7 @@ PRIMITIVES = {
 
 def make_primitive(kind: str, **params) -> Mesh:
     """Build the primitive `kind` (a key of PRIMITIVES) with keyword parameters `params`."""
-    make = PRIMITIVES.get(kind)
-    if make is None:
-        raise PrefilterError(f"unknown primitive '{kind}' (valid: {', '.join(PRIMITIVES)})")
-    valid = list(inspect.signature(make).parameters)
-    unknown = [name for name in params if name not in valid]
-    if unknown:
-        listed = ", ".join(valid) if valid else "none"
-        raise PrefilterError(f"primitive '{kind}' has no parameter '{unknown[0]}' (valid: {listed})")
-    return make(**params)
+    return call_registered(PRIMITIVES, "primitive", kind, params)
 
 
 # ----------------------------------------------------------------------------------------------------------

@@ -24,7 +24,6 @@ Conventions
 
 from __future__ import annotations
 
-import inspect
 import math
 import os
 import secrets
@@ -36,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from prefilter import PrefilterError
+from prefilter.registry import call_registered
 
 Z_MIN = 1e-6  # smallest normal z kept; tangent-plane normals are lifted to it
 MAP_EXTENSIONS = (".png", ".exr")
@@ -551,14 +551,4 @@ GENERATORS = {"hemispheres": hemispheres, "cylinders": cylinders, "twill": twill
 
 def generate(name: str, **params) -> SurfaceMap:
     """Call GENERATORS[name](**params); unknown generators and parameters raise PrefilterError."""
-    function = GENERATORS.get(name)
-    if function is None:
-        raise PrefilterError(f"unknown surface generator {name!r}; choose one of {', '.join(GENERATORS)}")
-    known = list(inspect.signature(function).parameters)
-    unknown = [key for key in params if key not in known]
-    if unknown:
-        raise PrefilterError(
-            f"surface generator {name!r} has no parameter {unknown[0]!r}; "
-            f"its parameters are {', '.join(known)}"
-        )
-    return function(**params)
+    return call_registered(GENERATORS, "surface generator", name, params)

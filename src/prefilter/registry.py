@@ -1,0 +1,22 @@
+"""Calling a function chosen by name from a registry with keyword parameters from a scene file."""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable
+from typing import Any
+
+from prefilter import PrefilterError
+
+
+def call_registered(registry: dict[str, Callable[..., Any]], what: str, name: str, params: dict) -> Any:
+    """registry[name](**params); an unknown name or parameter raises PrefilterError listing the valid ones."""
+    function = registry.get(name)
+    if function is None:
+        raise PrefilterError(f"unknown {what} '{name}' (valid: {', '.join(registry)})")
+    valid = list(inspect.signature(function).parameters)
+    unknown = [key for key in params if key not in valid]
+    if unknown:
+        listed = ", ".join(valid) if valid else "none"
+        raise PrefilterError(f"{what} '{name}' has no parameter '{unknown[0]}' (valid: {listed})")
+    return function(**params)
