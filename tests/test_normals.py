@@ -274,3 +274,25 @@ def test_bad_materials_name_the_key(tmp_path, material, message):
         _scene(material, base_dir=tmp_path)
     assert message in str(info.value)
     assert "test.toml" in str(info.value)
+
+
+def test_levels_of_a_tiling_map_are_alike_and_shaded_once_with_the_same_result():
+    """Hemispheres repeat every 16 texels: from level 4 up every texel holds the same peaks, and shading
+    such a level once per pixel gives the image that shading all its texels gives."""
+    periodic = build_pyramid(generate("hemispheres", size=(64, 64), count=(4, 4)), PyramidOptions(tile=16))
+    assert periodic.alike == [False] * 4 + [True] * 3
+    for level in range(4, 7):
+        assert (periodic.peaks[level] == periodic.peaks[level][0, 0]).all()
+    random = build_pyramid(generate("stochastic", size=(32, 32)), PyramidOptions(tile=16))
+    assert random.alike == [False] * 5 + [True]
+
+    material = (
+        'type = "normal-map"\nspecular = 0.3\nexponent = 60\nanisotropy = 4\n'
+        '[object.material.generator]\nname = "hemispheres"\nsize = [64, 64]\ncount = [4, 4]'
+    )
+    scene = _scene(material, light=(0.3, 0.8, -0.4), uv=(6.0, 300.0))  # lod 0 .. 6 across the image
+    shaded_once = _render(scene, ["multilobe"])["multilobe"]
+    scene.objects[0].material.pyramid().alike = [False] * 7
+    every_texel = _render(scene, ["multilobe"])["multilobe"]
+    assert shaded_once.max() > 0.05
+    np.testing.assert_allclose(shaded_once, every_texel, atol=1e-4)

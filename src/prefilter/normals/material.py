@@ -133,7 +133,14 @@ class NormalsMaterial:
             textures[name] = _mipmapped(ctx, data)
         level = np.zeros((MAX_LEVELS, 4), np.float32)
         level[: len(boxes)] = boxes
-        uniforms = {"nd_level": level, "nd_levelCount": len(boxes), "nd_maxPeaks": pyramid.max_peaks}
+        alike = np.zeros(MAX_LEVELS, np.float32)
+        alike[: len(boxes)] = pyramid.alike or [1.0] * len(boxes)
+        uniforms = {
+            "nd_level": level,
+            "nd_levelAlike": alike,
+            "nd_levelCount": len(boxes),
+            "nd_maxPeaks": pyramid.max_peaks,
+        }
         return {"textures": textures, "uniforms": uniforms}
 
     def baseline_maps(self, pyramid: NormalPyramid) -> dict[str, np.ndarray]:

@@ -11,7 +11,8 @@
 // samples along that axis, as anisotropic texture units do); within a level, bilinear weights over 4
 // texels; between levels, linear weights over 2 levels. The peaks of all contributing texels are used,
 // each with its amplitude multiplied by its interpolation weight (up to 8 texels x K peaks per sample) —
-// never averaged.
+// never averaged. A level whose texels are all alike (the map tiles with a period that fits in one
+// texel) gives the same peaks whatever the weights, so it is shaded once per pixel.
 
 #define ND_MAX_LEVELS 16
 #ifndef ND_ANISOTROPY
@@ -20,6 +21,7 @@
 
 uniform sampler2DArray nd_peaks;
 uniform vec4 nd_level[ND_MAX_LEVELS];
+uniform float nd_levelAlike[ND_MAX_LEVELS];  // 1: every texel of the level holds the same peaks
 uniform int nd_levelCount;
 uniform int nd_maxPeaks;
 

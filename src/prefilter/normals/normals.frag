@@ -182,11 +182,19 @@ void main() {
     vec2 weights;
     nd_levelWeights(footprint.lod, level0, weights);
     weights *= (1.0 - footprint.magnification) / float(footprint.count);
+    // a level whose texels are all alike (a tiling map's period within one texel) is shaded once
+    bool alike0 = nd_levelAlike[level0] > 0.5;
+    bool alike1 = weights.y > 0.0 && nd_levelAlike[min(level0 + 1, ND_MAX_LEVELS - 1)] > 0.5;
     for (int s = 0; s < ND_ANISOTROPY; ++s) {
         if (s >= footprint.count || footprint.magnification >= 1.0) break;
         vec2 at = uv + footprint.start + float(s) * footprint.step;
-        nd_addLevel(at, level0, weights.x);
-        if (weights.y > 0.0) nd_addLevel(at, level0 + 1, weights.y);
+        if (!alike0) nd_addLevel(at, level0, weights.x);
+        if (weights.y > 0.0 && !alike1) nd_addLevel(at, level0 + 1, weights.y);
+    }
+    if (footprint.magnification < 1.0) {
+        float samples = float(footprint.count);
+        if (alike0) nd_addTexel(level0, ivec2(0), samples * weights.x);
+        if (alike1) nd_addTexel(level0 + 1, ivec2(0), samples * weights.y);
     }
     colour = nd_colour();
 #elif defined(MODE_NAIVE)

@@ -122,6 +122,8 @@ class NormalPyramid:
     max_ratio: list[np.ndarray]
     options: PyramidOptions
     report: BakeReport = field(default_factory=BakeReport)
+    # per level: every texel holds the same peaks (the map tiles with a period of the level's block)
+    alike: list[bool] = field(default_factory=list)
 
     @property
     def max_peaks(self) -> int:
@@ -465,7 +467,16 @@ def build_pyramid(
             horizon[level][j, i] = result["horizon"]
             rms[level][j, i], mxr[level][j, i] = result["ratios"]
 
+    alike = [False] * len(sizes)
+    for level in range(1, len(sizes)):
+        if _tiles_with_period(normals, horizons, 1 << level):
+            alike[level] = True  # every block holds the same base texels: one fit serves them all
+            peaks[level][:] = peaks[level][:1, :1]
+            horizon[level][:] = horizon[level][:1, :1]
+            rms[level][:], mxr[level][:] = rms[level][0, 0], mxr[level][0, 0]
+    alike[-1] = True
     pyramid = NormalPyramid(sizes, peaks, horizon if horizons is not None else None, rms, mxr, options)
+    pyramid.alike = alike
     usage = max(
         resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
         resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss,
@@ -480,6 +491,20 @@ def build_pyramid(
         levels=[_level_report(level, pyramid) for level in range(len(sizes))],
     )
     return pyramid
+
+
+def _tiles_with_period(normals: np.ndarray, horizons: np.ndarray | None, period: int) -> bool:
+    """Whether the map repeats every `period` texels along both axes (so all blocks of that size match)."""
+    h, w = normals.shape[:2]
+    if h % period or w % period:
+        return False
+    for a in (normals, horizons):
+        if a is None:
+            continue
+        for axis in (0, 1):
+            if not np.allclose(np.roll(a, period, axis=axis), a, rtol=0.0, atol=1e-9):
+                return False
+    return True
 
 
 def _level_report(level: int, pyramid: NormalPyramid) -> LevelReport:
