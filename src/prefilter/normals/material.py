@@ -34,6 +34,7 @@ import numpy as np
 from prefilter import PrefilterError
 from prefilter.gl.uniforms import bind_samplers, set_uniforms
 from prefilter.normals.normal_maps import SurfaceMap, generate, load_surface
+from prefilter.normals.peaks import lobe
 from prefilter.normals.pyramid import NormalPyramid, PyramidOptions, build_pyramid
 from prefilter.scene import Reader, register_material
 
@@ -152,8 +153,6 @@ class NormalsMaterial:
                 stats = np.stack([horizon, horizon**2], axis=-2)
             return _baseline_images(self.surface.normals, None, stats)
         # a multiple surface: the moments of its distribution, by quadrature on the hemisphere grid
-        from prefilter.normals.peaks import lobe
-
         grid = self.options.grid()
         p = pyramid.peaks[0][0, 0]
         density = (p[:, 3][None, :] * lobe(grid.directions @ p[:, :3].T, p[:, 4][None, :])).sum(axis=1)

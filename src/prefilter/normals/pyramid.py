@@ -143,7 +143,7 @@ def level_sizes(width: int, height: int) -> list[tuple[int, int]]:
 
 
 # -- one texel -------------------------------------------------------------------------------------------
-def _horizon_stats(normals: np.ndarray, horizons: np.ndarray, responsibility: np.ndarray) -> np.ndarray:
+def _horizon_stats(horizons: np.ndarray, responsibility: np.ndarray) -> np.ndarray:
     """(K, 8): responsibility-weighted mean and std of the base horizons for each peak."""
     total = responsibility.sum(axis=0)  # (K,)
     safe = np.where(total > 0, total, 1.0)
@@ -195,7 +195,7 @@ def texel_peaks(
             owner = np.argmax(normals @ dirs.T, axis=1)
             responsibility = np.zeros((m, len(dirs)))
             responsibility[np.arange(m), owner] = weights
-            stats = _horizon_stats(normals, horizons, responsibility)
+            stats = _horizon_stats(horizons, responsibility)
         peaks, horizon = _pack(found, stats, options)
         return peaks, horizon, 0.0, 0.0
     found = fit_peaks(
@@ -213,7 +213,7 @@ def texel_peaks(
         nearest = np.zeros_like(density)
         nearest[np.arange(m), np.argmax(normals @ dirs.T, axis=1)] = 1.0
         responsibility = np.where(total > 0, density / np.where(total > 0, total, 1.0), nearest)
-        stats = _horizon_stats(normals, horizons, responsibility * weights[:, None])
+        stats = _horizon_stats(horizons, responsibility * weights[:, None])
     peaks, horizon = _pack(found, stats, options)
     return peaks, horizon, float(found.rms_ratio), float(found.max_ratio)
 
