@@ -45,6 +45,10 @@ SINGLE_LOBE_TAG = "vs-single-lobe"
 BUILD_STUDY_SIZE = 256  # "the pyramid of a 256x256 normal map with 7 peaks builds in <= 60 s"
 TRADEOFF_PRESET = "normals-cylinders-plane"
 TRADEOFF = ((7, 4), (7, 2), (7, 1), (4, 4), (4, 1), (2, 1))  # (peaks per texel K, footprint samples)
+# Diffraction presets (issue #6): every reference pass runs the spectral loop, so references are capped.
+DIFFRACTION_TAG = "diffraction"
+DIFFRACTION_SPP = 16
+DIFFRACTION_BAKE_SIZES = (512, 1024)
 QUANT_BITS = (6, 8, 10, 12, 16)
 STUDY_PRESETS = ("wood-teapot", "marble-teapot", "planet")
 FLIGHT_PRESET = "seascape"
@@ -67,6 +71,8 @@ def surface_size(scene: Scene, size) -> tuple[int, int]:
 def bench_preset(scene: Scene, size, spp: int, frames: int) -> dict:
     if SURFACE_TAG in scene.tags:
         size, spp = surface_size(scene, size), min(spp, SURFACE_SPP)
+    if DIFFRACTION_TAG in scene.tags:
+        spp = min(spp, DIFFRACTION_SPP)
     modes = scene_modes(scene)
     filtered = scene.technique_modes()
     renderer = Renderer(scene, size)
@@ -130,8 +136,46 @@ def bench_preset(scene: Scene, size, spp: int, frames: int) -> dict:
         checks["multilobe_time_le_3_unfiltered"] = (
             entry["fournier_timing"]["filtered"] <= 3.0 * (entry["fournier_timing"]["unfiltered"])
         )
+    if DIFFRACTION_TAG in scene.tags:
+        entry["diffraction_timing"] = diffraction_timing(scene, size, frames)
     entry["checks"] = checks
     return entry
+
+
+def diffraction_timing(scene: Scene, size, frames: int) -> dict:
+    """The accurate path (`point`) and Stam's analytic shader (`naive`) as ratios to Blinn-Phong."""
+    renderer = Renderer(scene, size)
+    try:
+        ms = renderer.time_modes(["blinn-phong", "point", "naive"], frames)
+    finally:
+        renderer.release()
+    return {
+        "blinn_phong_ms": ms["blinn-phong"],
+        "accurate_vs_blinn_phong": ms["point"] / ms["blinn-phong"],
+        "analytic_vs_blinn_phong": ms["naive"] / ms["blinn-phong"],
+    }
+
+
+def diffraction_bake_study(sizes=DIFFRACTION_BAKE_SIZES) -> dict:
+    """Bake time and table memory of the Taylor terms of Xenopeltis-like height fields (0.05 µm pixels)."""
+    import time
+
+    from prefilter.diffraction.nanostructure import generate
+    from prefilter.diffraction.transform import taylor_terms
+
+    out = {}
+    for n in sizes:
+        structure = generate("xenopeltis", size=n * 0.05, pixel=0.05)
+        start = time.perf_counter()
+        terms = taylor_terms(structure.heights, structure.pixel)
+        seconds = time.perf_counter() - start
+        out[f"{n}x{n}"] = {
+            "seconds": seconds,
+            "terms": terms.order + 1,
+            "texture_mb": terms.coefficients.size * 8 / 2**20,  # RG32F on the GPU
+        }
+        del terms
+    return out
 
 
 def fournier_timing(scene: Scene, size, frames: int) -> dict:
@@ -530,6 +574,8 @@ def run_bench(
         studies["multilobe_tradeoff"] = multilobe_tradeoff_study(
             resolve_scene(TRADEOFF_PRESET), size, spp, frames
         )
+    if any(DIFFRACTION_TAG in s.tags for s in scenes):
+        studies["diffraction_bake"] = diffraction_bake_study()
     if any(FOURNIER_TAG in s.tags for s in scenes):
         studies["pyramid_build"] = build = pyramid_build_study()
         for name, report in build.items():

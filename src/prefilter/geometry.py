@@ -250,6 +250,26 @@ def torus(major: float = 1.0, minor: float = 0.4, segments: int = 96, sides: int
     return Mesh(positions, normals, tangents, np.stack([u, v], axis=1), faces)
 
 
+def cylinder(radius: float = 0.5, length: float = 3.0, segments: int = 96, rings: int = 8) -> Mesh:
+    """Open tube along the x axis (a snake's body): `segments` around it, `rings` along it; analytic frames.
+
+    P(u, v) = (length (u - 1/2), r cos(psi), -r sin(psi)), psi = 2 pi v: u runs along the axis, v around it;
+    tangent dP/du = +x, bitangent dP/dv, normal outwards (right-handed, w = +1).
+    """
+    radius = _positive("cylinder", "radius", radius)
+    length = _positive("cylinder", "length", length)
+    segments = _count("cylinder", "segments", segments, 3)
+    rings = _count("cylinder", "rings", rings, 1)
+    u, v = np.meshgrid(np.linspace(0.0, 1.0, rings + 1), np.linspace(0.0, 1.0, segments + 1))
+    u, v = u.ravel(), v.ravel()
+    psi = 2.0 * np.pi * np.mod(v, 1.0)
+    normals = np.stack([np.zeros_like(psi), np.cos(psi), -np.sin(psi)], axis=1)
+    positions = np.stack([length * (u - 0.5), radius * normals[:, 1], radius * normals[:, 2]], axis=1)
+    tangents = np.tile([1.0, 0.0, 0.0, 1.0], (len(u), 1))
+    faces = _grid_faces(rings, segments).reshape(-1, 3)
+    return Mesh(positions, normals, tangents, np.stack([u, v], axis=1), faces)
+
+
 # (normal, tangent = dP/du, bitangent = dP/dv) per face, each right-handed: tangent x bitangent = normal.
 _CUBE_FACES = (
     ((1, 0, 0), (0, 0, -1), (0, 1, 0)),
@@ -320,6 +340,7 @@ PRIMITIVES = {
     "plane_horizon": plane_horizon,
     "sphere": sphere,
     "torus": torus,
+    "cylinder": cylinder,
     "cube": cube,
     "teapot": teapot,
 }

@@ -214,6 +214,13 @@ class Camera:
 class Light:
     direction: np.ndarray  # world space, unit, towards the light
     colour: np.ndarray  # linear RGB, intensity folded in
+    direction_end: np.ndarray | None = None  # at animation time t = 1 (moving lights)
+
+    def at(self, t: float) -> Light:
+        if self.direction_end is None:
+            return self
+        d = (1 - t) * self.direction + t * self.direction_end
+        return replace(self, direction=d / np.linalg.norm(d), direction_end=None)
 
 
 @dataclass
@@ -286,6 +293,7 @@ def parse_scene(text: str, source: str, base_dir: Path) -> Scene:
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{source}: TOML syntax error: {exc}") from None
     import prefilter.colormap.tabulated  # noqa: F401  (registers the material types)
+    import prefilter.diffraction.material  # noqa: F401
     import prefilter.microsurface.material  # noqa: F401
     import prefilter.normals.material  # noqa: F401
     import prefilter.procedural.hart  # noqa: F401
@@ -329,7 +337,13 @@ def parse_scene(text: str, source: str, base_dir: Path) -> Scene:
         if np.linalg.norm(direction) == 0:
             raise lr.fail("direction", "must be non-zero")
         colour = lr.colour("colour", "#ffffff") * lr.number("intensity", 1.0, lo=0.0)
-        lights.append(Light(direction / np.linalg.norm(direction), colour))
+        end = None
+        if lr.has("direction_end"):
+            end = lr.vector("direction_end", 3)
+            if np.linalg.norm(end) == 0:
+                raise lr.fail("direction_end", "must be non-zero")
+            end = end / np.linalg.norm(end)
+        lights.append(Light(direction / np.linalg.norm(direction), colour, end))
         lr.finish()
 
     objects = []

@@ -169,7 +169,8 @@ class Renderer:
                 eye = np.append(object_from_world[:3, :3] @ (camera.target - camera.eye), 0.0)
             else:
                 eye = object_from_world @ np.append(camera.eye, 1.0)
-            lights = scene.lights[:4] + [Light(np.zeros(3), np.zeros(3))] * (4 - len(scene.lights[:4]))
+            lights = [x.at(t) for x in scene.lights[:4]]
+            lights += [Light(np.zeros(3), np.zeros(3))] * (4 - len(lights))
             set_uniforms(
                 prog,
                 {

@@ -39,6 +39,7 @@ from prefilter.normals.pyramid import NormalPyramid, PyramidOptions, build_pyram
 from prefilter.scene import Reader, register_material
 
 SHADER_DIR = Path(__file__).resolve().parent
+PACKAGE_ROOT = SHADER_DIR.parent
 MAX_LEVELS = 16
 MAX_CONSTANT_PEAKS = 16
 
@@ -102,7 +103,7 @@ class NormalsMaterial:
         return replace(self, uv_scale=self.uv_scale * factor)
 
     def shader_sources(self) -> tuple[Path, Path]:
-        return SHADER_DIR / "normals.vert", SHADER_DIR / "normals.frag"
+        return PACKAGE_ROOT / "glsl/common/tangent_frame.vert", SHADER_DIR / "normals.frag"
 
     def defines(self, options) -> dict[str, object]:
         defines: dict[str, object] = {"ND_ANISOTROPY": self.anisotropy}

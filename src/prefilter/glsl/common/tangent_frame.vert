@@ -1,5 +1,5 @@
-// Vertex stage of normal-mapped materials (normals/): world normal, world tangent frame and the vector
-// to the eye, so that the fragment stage can express light and view directions in the tangent frame.
+// Shared vertex stage of materials shaded in the tangent frame (normals/, diffraction/): world normal,
+// world tangent frame and the vector to the eye, for light and view directions in the tangent frame.
 // u_jitter is a sub-pixel offset of the projection in NDC units (reference supersampling passes).
 in vec3 in_pos;
 in vec3 in_nrm;

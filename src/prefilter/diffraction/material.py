@@ -1,0 +1,157 @@
+"""Diffraction material (type = "diffraction"): Stam's BRDF from a nanostructure's height field.
+
+    structure = "file.npy|png|exr"  pixel_um = 0.05  height_scale_um = 1.0
+    [generator] name = "sinusoidal|blazed|cd_grooves|elaphe|xenopeltis", other keys = its parameters
+    grooves = "straight" | "circular"   groove_angle = 0 (degrees)   centre = [0.5, 0.5] (uv, circular)
+    coherence_um = 16.25 (σ of the Gaussian window)   spectral_step_nm = 5   f0 = 1 (Schlick)
+    epsilon = 1e-7 (Taylor truncation)   exposure = 1
+
+Modes: `point` is the accurate path (diffraction/stam.glsl: Taylor/FFT transform, spectral loop), the
+reference supersamples it; `naive` is Stam's analytic grating shader with the structure's dominant
+period; `blinn-phong` is the timing yardstick. The Taylor terms are baked (diffraction/transform.py) and
+cached by content.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import moderngl
+import numpy as np
+
+from prefilter import PrefilterError
+from prefilter.bake_cache import cached_arrays
+from prefilter.diffraction.nanostructure import Nanostructure, generate, read_heightfield
+from prefilter.diffraction.spectrum import spectral_weights
+from prefilter.gl.uniforms import bind_samplers, set_uniforms
+from prefilter.scene import Reader, register_material
+
+SHADER_DIR = Path(__file__).resolve().parent
+PACKAGE_ROOT = SHADER_DIR.parent
+
+
+def dominant_period(structure: Nanostructure) -> float:
+    """The period (µm) of the strongest spatial frequency across the grooves (along x)."""
+    row = (structure.heights - structure.heights.mean()).mean(axis=0)
+    spectrum = np.abs(np.fft.rfft(row))
+    spectrum[0] = 0.0
+    index = int(np.argmax(spectrum))
+    return structure.size_um[0] / max(index, 1)
+
+
+@dataclass
+class DiffractionMaterial:
+    structure: Nanostructure
+    circular: bool
+    groove_angle: float  # radians
+    centre: tuple[float, float]
+    coherence: float  # µm
+    spectral_step: float  # nm
+    f0: float
+    epsilon: float
+    exposure: float
+
+    kind = "diffraction"
+
+    def modes(self) -> tuple[str, ...]:
+        return ()
+
+    def diagnostic_modes(self) -> tuple[str, ...]:
+        return ("blinn-phong",)
+
+    def scaled(self, factor: float) -> DiffractionMaterial:
+        return self  # a BRDF: nothing is mapped over the surface
+
+    def shader_sources(self) -> tuple[Path, Path]:
+        return PACKAGE_ROOT / "glsl/common/tangent_frame.vert", SHADER_DIR / "diffraction.frag"
+
+    def defines(self, options) -> dict[str, object]:
+        return {"DF_CIRCULAR": True} if self.circular else {}
+
+    def terms(self) -> dict[str, np.ndarray]:
+        """The baked Taylor terms: coefficients (N+1, H, W) complex64 and the bin spacing (cached)."""
+        from prefilter.diffraction.transform import taylor_terms
+
+        s = self.structure
+
+        def compute() -> dict[str, np.ndarray]:
+            t = taylor_terms(s.heights, s.pixel, sigma=self.coherence, epsilon=self.epsilon)
+            return {"coefficients": t.coefficients.astype(np.complex64), "order": np.array([t.order])}
+
+        params = {"pixel": list(s.pixel), "sigma": self.coherence, "epsilon": self.epsilon, "version": 1}
+        return cached_arrays("df-terms", params, (s.heights,), compute)
+
+    def upload(self, ctx: moderngl.Context, mesh) -> dict:
+        terms = self.terms()
+        c = terms["coefficients"]
+        layers, h, w = c.shape
+        data = np.stack([c.real, c.imag], axis=-1).astype(np.float32)
+        table = ctx.texture_array((w, h, layers), 2, np.ascontiguousarray(data).tobytes(), dtype="f4")
+        table.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        wavelengths, weights = spectral_weights(self.spectral_step)
+        spectrum = np.concatenate([weights, wavelengths[:, None]], axis=1).astype(np.float32)
+        spectrum_tex = ctx.texture((len(wavelengths), 1), 4, spectrum.tobytes(), dtype="f4")
+        spectrum_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        dx, dy = self.structure.pixel
+        uniforms = {
+            "df_bins": (2 * math.pi / (w * dx), 2 * math.pi / (h * dy), float(w), float(h)),
+            "df_sigma": self.coherence,
+            "df_order": int(terms["order"][0]),
+            "df_wavelengths": len(wavelengths),
+            "df_f0": self.f0,
+            "df_angle": self.groove_angle,
+            "df_centre": self.centre,
+            "df_period": dominant_period(self.structure),
+            "u_exposure": self.exposure,
+        }
+        return {"textures": {"df_terms": table, "df_spectrum": spectrum_tex}, "uniforms": uniforms}
+
+    def release(self, resources: dict) -> None:
+        for texture in resources["textures"].values():
+            texture.release()
+
+    def bind(self, prog, resources: dict, t: float, options) -> None:
+        bind_samplers(prog, resources["textures"])
+        set_uniforms(prog, resources["uniforms"])
+
+
+@register_material("diffraction")
+def parse_diffraction(r: Reader, base_dir: Path) -> DiffractionMaterial:
+    gen = r.child("generator")
+    if gen is not None and r.has("structure"):
+        raise r.fail("generator", "give either a generator or a structure file, not both")
+    if gen is not None:
+        name = gen.string("name", required=True)
+        params = {k: v for k, v in gen.table.items() if k != "name"}
+        gen.used.update(params)
+        try:
+            structure = generate(name, **params)
+        except PrefilterError as exc:
+            raise gen.fail(None, str(exc)) from None
+    elif r.has("structure"):
+        path = Path(r.string("structure"))
+        path = path if path.is_absolute() else base_dir / path
+        if not path.is_file():
+            raise r.fail("structure", f"file not found: {path}")
+        try:
+            structure = read_heightfield(
+                path, r.number("pixel_um", required=True, lo=1e-6), r.number("height_scale_um", 1.0)
+            )
+        except PrefilterError as exc:
+            raise r.fail("structure", str(exc)) from None
+    else:
+        raise r.fail(None, "needs structure = 'file' (with pixel_um) or a [generator]")
+    centre = r.vector("centre", 2, default=[0.5, 0.5])
+    return DiffractionMaterial(
+        structure=structure,
+        circular=r.string("grooves", "straight", choices=("straight", "circular")) == "circular",
+        groove_angle=math.radians(r.number("groove_angle", 0.0)),
+        centre=(float(centre[0]), float(centre[1])),
+        coherence=r.number("coherence_um", 65.0 / 4.0, lo=0.1, hi=1000.0),
+        spectral_step=r.number("spectral_step_nm", 5.0, lo=0.1, hi=50.0),
+        f0=r.number("f0", 1.0, lo=0.0, hi=1.0),
+        epsilon=r.number("epsilon", 1e-7, lo=1e-12, hi=0.1),
+        exposure=r.number("exposure", 1.0, lo=0.0),
+    )

@@ -1,0 +1,108 @@
+// Stam's diffraction BRDF from a height field (Stam 1999; Single 2013 §2.3-2.4), prefix df_.
+//
+// Tangent frame: +x across the grooves (light disperses along x), +y along them, +z the normal.
+// k1 = -wi is the incident propagation direction, k2 = wo the direction towards the eye,
+// (u, v, w) = k1 - k2 (Stam eq. (6): v), G = (1 - k1·k2) / (cos θ1 cos θ2) (eq. (7)).
+//
+// Relative reflectance (DESIGN.md erratum): the BRDF divided by that of a flat mirror in the specular
+// direction for the same incidence, so a mirror shows the light's colour there:
+//   R = F_R(cos θ_h) · (G / w²) · 2 cos²θ1 · |P̃(k u, k v; k w)|²,
+// where P̃ is the transform of exp(i k w h) through the Gaussian coherence window, normalised to 1 at
+// the origin for a flat surface (diffraction/transform.py), and F_R is Schlick's reflectance.
+//
+// P̃ is the Taylor sum of Single §2.4: Σ_n (k w)^n Σ_bins c_n[bin] exp(-σ² |(α, β) - bin|² / 2), with c_n
+// the Fourier-series coefficients of (i h)^n / n! (mean-subtracted h): the complex terms are summed first
+// (by Horner's rule in k w), then squared. The 2 x 2 DFT bins nearest (α, β) carry the window.
+//
+// df_terms: RG32F texture array, layer n = c_n in NumPy FFT order; df_bins = (2π / (W dx), 2π / (H dy),
+// W, H); df_sigma (µm); df_order N. df_spectrum: RGBA32F, texel j = (XYZ weight, wavelength µm) with the
+// weights of D65 x CIE 1931 normalised to a white Y of 1 (diffraction/spectrum.py).
+
+const float DF_PI = 3.14159265358979;
+
+uniform sampler2DArray df_terms;
+uniform vec4 df_bins;
+uniform float df_sigma;
+uniform int df_order;
+uniform sampler2D df_spectrum;
+uniform int df_wavelengths;
+uniform float df_f0;  // Schlick F0 (1: no Fresnel fall-off)
+
+// linear sRGB from XYZ (IEC 61966-2-1, D65), column-major
+const mat3 DF_SRGB_FROM_XYZ = mat3(3.2404542, -0.9692660, 0.0556434,
+                                   -1.5371385, 1.8760108, -0.2040259,
+                                   -0.4985314, 0.0415560, 1.0572252);
+
+vec2 df_term(ivec2 bin, int n) {
+    ivec2 size = ivec2(df_bins.zw);
+    ivec2 wrapped = ivec2(bin.x - size.x * int(floor(float(bin.x) / df_bins.z)),
+                          bin.y - size.y * int(floor(float(bin.y) / df_bins.w)));
+    return texelFetch(df_terms, ivec3(wrapped, n), 0).xy;
+}
+
+// P̃(α, β; k w): complex (re, im).
+vec2 df_transform(float alpha, float beta, float kw) {
+    vec2 at = vec2(alpha, beta) / df_bins.xy;
+    ivec2 b0 = ivec2(floor(at));
+    vec2 sum = vec2(0.0);
+    for (int c = 0; c < 4; ++c) {
+        ivec2 bin = b0 + ivec2(c % 2, c / 2);
+        vec2 d = (vec2(bin) - at) * df_bins.xy;
+        float g = exp(-0.5 * df_sigma * df_sigma * dot(d, d));
+        if (g < 1e-7) continue;
+        vec2 acc = df_term(bin, df_order);
+        for (int n = df_order - 1; n >= 0; --n) acc = acc * kw + df_term(bin, n);  // Horner in k w
+        sum += g * acc;
+    }
+    return sum;
+}
+
+// (u, v, w) and the wavelength-independent gain F_R (G / w²) 2 cos²θ1; wi, wo unit, tangent frame.
+vec4 df_geometry(vec3 wi, vec3 wo) {
+    vec3 k1 = -wi, k2 = wo;
+    vec3 uvw = k1 - k2;
+    float cos1 = max(wi.z, 1e-4), cos2 = max(wo.z, 1e-4);
+    float g = (1.0 - dot(k1, k2)) / (cos1 * cos2);
+    vec3 h = normalize(wi + wo);
+    float fresnel = df_f0 + (1.0 - df_f0) * pow(1.0 - clamp(dot(h, wo), 0.0, 1.0), 5.0);
+    float gain = fresnel * g / max(uvw.z * uvw.z, 1e-8) * 2.0 * cos1 * cos1;
+    return vec4(uvw, gain);
+}
+
+// The accurate path: linear sRGB relative reflectance, spectral loop over df_wavelengths samples.
+vec3 df_reflectance(vec3 wi, vec3 wo) {
+    if (wi.z <= 0.0 || wo.z <= 0.0) return vec3(0.0);
+    vec4 geometry = df_geometry(wi, wo);
+    vec3 xyz = vec3(0.0);
+    for (int j = 0; j < 1024; ++j) {
+        if (j >= df_wavelengths) break;
+        vec4 s = texelFetch(df_spectrum, ivec2(j, 0), 0);
+        float k = 2.0 * DF_PI / s.w;
+        vec2 p = df_transform(k * geometry.x, k * geometry.y, k * geometry.z);
+        xyz += dot(p, p) * s.xyz;
+    }
+    return max(DF_SRGB_FROM_XYZ * (geometry.w * xyz), vec3(0.0));
+}
+
+// Baseline: Stam's analytic grating shader (GPU Gems ch. 8 style) for a grating of period d (µm): order
+// m lights the wavelength λ = d |u| / |m| within 380-780 nm, every order taken 10 % efficient and spread
+// along y by the coherence window; the zeroth order is a white mirror lobe. No height field is used.
+vec3 df_analyticGrating(vec3 wi, vec3 wo, float period) {
+    if (wi.z <= 0.0 || wo.z <= 0.0) return vec3(0.0);
+    vec4 geometry = df_geometry(wi, wo);
+    float u = geometry.x, v = geometry.y;
+    float k0 = 2.0 * DF_PI / 0.55;
+    vec3 xyz = vec3(exp(-df_sigma * df_sigma * k0 * k0 * (u * u + v * v)));
+    xyz *= vec3(0.9504, 1.0, 1.0888);  // D65 white
+    float first = texelFetch(df_spectrum, ivec2(0, 0), 0).w;
+    float last = texelFetch(df_spectrum, ivec2(df_wavelengths - 1, 0), 0).w;
+    for (int m = 1; m <= 8; ++m) {
+        float lambda = period * abs(u) / float(m);
+        if (lambda < first || lambda > last) continue;
+        float j = (lambda - first) / (last - first) * float(df_wavelengths - 1);
+        vec3 weight = texelFetch(df_spectrum, ivec2(int(j + 0.5), 0), 0).xyz;
+        float k = 2.0 * DF_PI / lambda;
+        xyz += 0.1 * weight * float(df_wavelengths) * exp(-df_sigma * df_sigma * k * k * v * v);
+    }
+    return max(DF_SRGB_FROM_XYZ * (geometry.w * xyz), vec3(0.0));
+}

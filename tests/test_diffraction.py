@@ -1,0 +1,169 @@
+"""Diffraction at run time: the GLSL transform and reflectance against the NumPy bake and closed forms."""
+
+import math
+
+import moderngl
+import numpy as np
+import pytest
+
+from prefilter.diffraction.nanostructure import Nanostructure, generate
+from prefilter.diffraction.spectrum import spectral_weights, xyz_to_srgb
+from prefilter.diffraction.transform import taylor_terms
+from prefilter.gl.context import gl_context
+from prefilter.gl.evaluate import glsl_eval
+from prefilter.gl.render import Renderer
+from prefilter.scene import SceneError, parse_scene
+
+INCLUDES = ("diffraction/stam.glsl",)
+
+
+def _textures(terms, step_nm=5.0):
+    ctx = gl_context()
+    c = terms.coefficients.astype(np.complex64)
+    layers, h, w = c.shape
+    data = np.ascontiguousarray(np.stack([c.real, c.imag], axis=-1).astype(np.float32))
+    table = ctx.texture_array((w, h, layers), 2, data.tobytes(), dtype="f4")
+    table.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    wavelengths, weights = spectral_weights(step_nm)
+    spectrum = np.concatenate([weights, wavelengths[:, None]], axis=1).astype(np.float32)
+    spectrum_tex = ctx.texture((len(wavelengths), 1), 4, spectrum.tobytes(), dtype="f4")
+    spectrum_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    dx, dy = terms.pixel
+    uniforms = {
+        "df_bins": (2 * math.pi / (w * dx), 2 * math.pi / (h * dy), float(w), float(h)),
+        "df_sigma": float(terms.sigma),
+        "df_order": int(terms.order),
+        "df_wavelengths": len(wavelengths),
+        "df_f0": 1.0,
+    }
+    return {"df_terms": table, "df_spectrum": spectrum_tex}, uniforms, (wavelengths, weights)
+
+
+def test_glsl_taylor_transform_equals_the_bake():
+    structure = generate("sinusoidal", period=1.6, amplitude=0.1, periods=8, pixel=0.05)
+    terms = taylor_terms(structure.heights, structure.pixel, sigma=4.0)
+    textures, uniforms, _ = _textures(terms)
+    rng = np.random.default_rng(4)
+    k = 2 * np.pi / rng.uniform(0.38, 0.78, 64)
+    u, v, w = rng.uniform(-1.5, 1.5, 64), rng.uniform(-0.2, 0.2, 64), -rng.uniform(0.5, 2.0, 64)
+    got = glsl_eval(
+        "df_transform(a, b, kw)",
+        {"a": k * u, "b": k * v, "kw": k * w},
+        2,
+        includes=INCLUDES,
+        uniforms=uniforms,
+        textures=textures,
+    )
+    expected = terms.evaluate(k * u, k * v, k * w, nearest=True)  # the shader reads the 2 x 2 nearest bins
+    np.testing.assert_allclose(got[:, 0] + 1j * got[:, 1], expected, atol=2e-4)
+    for t in textures.values():
+        t.release()
+
+
+def test_flat_mirror_is_white_in_the_specular_direction_and_dark_away_from_it():
+    flat = Nanostructure(np.zeros((32, 32)), (0.05, 0.05), "flat")
+    terms = taylor_terms(flat.heights, flat.pixel, sigma=10.0)
+    textures, uniforms, _ = _textures(terms)
+    theta = np.radians([0.0, 20.0, 50.0, 70.0])
+    wi = np.stack([np.sin(theta), np.zeros_like(theta), np.cos(theta)], 1)
+    mirror = wi * [-1, -1, 1]
+    off = np.stack([-np.sin(theta + 0.2), np.zeros_like(theta), np.cos(theta + 0.2)], 1)
+    got = glsl_eval(
+        "df_reflectance(wi, wo)",
+        {"wi": np.concatenate([wi, wi]), "wo": np.concatenate([mirror, off])},
+        3,
+        includes=INCLUDES,
+        uniforms=uniforms,
+        textures=textures,
+    )
+    np.testing.assert_allclose(got[:4], 1.0, atol=2e-3)  # D65 white through XYZ -> sRGB
+    assert got[4:].max() < 1e-6
+    for t in textures.values():
+        t.release()
+
+
+def test_glsl_reflectance_of_a_grating_equals_stams_formula_summed_over_the_spectrum():
+    """R = F (G / w²) 2 cos²θ1 Σ_λ |P̃|² weights(λ), with G from Stam's eq. (7), along the first order."""
+    structure = generate("sinusoidal", period=1.6, amplitude=0.08, periods=8, pixel=0.05)
+    terms = taylor_terms(structure.heights, structure.pixel, sigma=4.0)
+    textures, uniforms, (wavelengths, weights) = _textures(terms, step_nm=10.0)
+    theta_i = np.radians(30.0)
+    wi = np.array([np.sin(theta_i), 0.0, np.cos(theta_i)])
+    theta_o = np.radians(np.linspace(-80, 80, 41))
+    wo = np.stack([np.sin(theta_o), np.zeros_like(theta_o), np.cos(theta_o)], 1)
+    wo /= np.linalg.norm(wo, axis=1, keepdims=True)
+    got = glsl_eval(
+        "df_reflectance(wi, wo)",
+        {"wi": np.tile(wi, (len(wo), 1)), "wo": wo},
+        3,
+        includes=INCLUDES,
+        uniforms=uniforms,
+        textures=textures,
+    )
+    k1, k2 = -wi, wo
+    uvw = k1 - k2
+    g = (1 - k2 @ k1) / (wi[2] * wo[:, 2])
+    gain = g / uvw[:, 2] ** 2 * 2 * wi[2] ** 2
+    xyz = np.zeros((len(wo), 3))
+    for lam, wt in zip(wavelengths, weights, strict=True):
+        k = 2 * np.pi / lam
+        p = terms.evaluate(k * uvw[:, 0], k * uvw[:, 1], k * uvw[:, 2], nearest=True)
+        xyz += np.abs(p)[:, None] ** 2 * wt
+    expected = np.maximum(xyz_to_srgb(gain[:, None] * xyz), 0.0)
+    assert expected.max() > 0.01
+    np.testing.assert_allclose(got, expected, atol=2e-3 * expected.max() + 1e-6)
+    for t in textures.values():
+        t.release()
+
+
+def _scene(material: str, light="direction = [0.3, 0.8, 0.2]\ndirection_end = [-0.3, 0.8, 0.2]"):
+    text = f"""
+size = [48, 32]
+[camera]
+eye = [0.0, 1.5, 1.5]
+target = [0.0, 0.0, 0.0]
+[[light]]
+{light}
+[[object]]
+shape = "plane"
+[object.material]
+type = "diffraction"
+{material}
+"""
+    return parse_scene(text, "test.toml", ".")
+
+
+def test_scene_renders_every_mode_and_the_light_moves():
+    scene = _scene('[object.material.generator]\nname = "sinusoidal"\nperiods = 4')
+    assert np.allclose(
+        scene.lights[0].at(1.0).direction, np.array([-0.3, 0.8, 0.2]) / np.linalg.norm([-0.3, 0.8, 0.2])
+    )
+    renderer = Renderer(scene)
+    try:
+        for mode in ("point", "naive", "blinn-phong"):
+            image = renderer.render(mode)
+            assert np.isfinite(image).all()
+    finally:
+        renderer.release()
+
+
+@pytest.mark.parametrize(
+    "material, message",
+    [
+        ("", "needs structure"),
+        ('[object.material.generator]\nname = "opal"', "opal"),
+        ('structure = "missing.npy"\npixel_um = 0.05', "structure: file not found"),
+        ('grooves = "spiral"\n[object.material.generator]\nname = "blazed"', "grooves: expected one of"),
+    ],
+)
+def test_bad_diffraction_materials_name_the_key(material, message):
+    with pytest.raises(SceneError) as info:
+        _scene(material)
+    assert message in str(info.value) and "test.toml" in str(info.value)
+
+
+def test_coarse_height_fields_are_rejected(tmp_path):
+    np.save(tmp_path / "coarse.npy", np.zeros((16, 16)))
+    text = f'structure = "{tmp_path / "coarse.npy"}"\npixel_um = 0.2'
+    with pytest.raises(SceneError, match="too coarse"):
+        _scene(text)
