@@ -54,7 +54,7 @@ BAD = [
         VALID.replace("target = [0.0, 0.0, 0.0]", 'target = [0.0, 0.0, 0.0]\nfov = "wide"'),
         "camera.fov: expected a number",
     ),
-    (VALID.replace('shape = "sphere"', 'shape = "cylinder"'), "object[0].shape: expected one of"),
+    (VALID.replace('shape = "sphere"', 'shape = "prism"'), "object[0].shape: expected one of"),
     (VALID.replace('shape = "sphere"', 'shape = "sphere"\ncolour = 3'), "object[0].colour: unknown key"),
     (VALID.replace('"#ffffff"', '"#ffzzff"'), "object[0].material.colour_table.stops"),
     (VALID.replace("[[0.0,", "[[0.7,").replace("[1.0,", "[0.2,"), "object[0].material.colour_table.stops"),
