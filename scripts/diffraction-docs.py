@@ -66,7 +66,8 @@ def preset_images() -> None:
     for preset in ("diffraction-grating-plane", "diffraction-cd", "diffraction-snake-cylinder"):
         out = Path("out/docs") / preset
         subprocess.run(
-            [sys.executable, "-m", "prefilter.cli", "compare", preset, "--spp", "16", "-o", str(out)], check=True
+            [sys.executable, "-m", "prefilter.cli", "compare", preset, "--spp", "16", "-o", str(out)],
+            check=True,
         )
         (OUT / f"{preset}.png").write_bytes((out / "strip.png").read_bytes())
 

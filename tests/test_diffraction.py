@@ -167,3 +167,24 @@ def test_coarse_height_fields_are_rejected(tmp_path):
     text = f'structure = "{tmp_path / "coarse.npy"}"\npixel_um = 0.2'
     with pytest.raises(SceneError, match="too coarse"):
         _scene(text)
+
+
+def test_fast_path_agrees_with_the_accurate_path_within_delta_e_1():
+    from prefilter.gl.render import composite, coverage_mask
+    from prefilter.metrics import compare
+
+    scene = _scene(
+        "coherence_um = 3.0\nfast_table = [128, 128, 24]\n"
+        '[object.material.generator]\nname = "blazed"\nperiods = 4',
+        light="direction = [0.25, 0.55, -0.8]",
+    )
+    renderer = Renderer(scene)
+    try:
+        rgba = {mode: renderer.render(mode) for mode in ("point", "fast")}
+    finally:
+        renderer.release()
+    mask = coverage_mask(rgba["point"])
+    point, fast = (composite(rgba[m], scene.background) for m in ("point", "fast"))
+    assert point.max() > 0.05  # the orders are in view
+    scores = compare(fast, point, mask)
+    assert scores["delta_e"] <= 1.0, scores

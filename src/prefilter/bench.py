@@ -137,21 +137,26 @@ def bench_preset(scene: Scene, size, spp: int, frames: int) -> dict:
             entry["fournier_timing"]["filtered"] <= 3.0 * (entry["fournier_timing"]["unfiltered"])
         )
     if DIFFRACTION_TAG in scene.tags:
-        entry["diffraction_timing"] = diffraction_timing(scene, size, frames)
+        entry["diffraction_timing"] = timing = diffraction_timing(scene, size, frames)
+        checks["fast_time_le_10_blinn_phong"] = timing["fast_vs_blinn_phong"] <= 10.0
+        fast_vs_point = compare(result.images["fast"], result.images["point"], result.mask)
+        entry["fast_delta_e_vs_accurate"] = float(fast_vs_point["delta_e"])
+        checks["fast_delta_e_le_1_accurate"] = entry["fast_delta_e_vs_accurate"] <= 1.0
     entry["checks"] = checks
     return entry
 
 
 def diffraction_timing(scene: Scene, size, frames: int) -> dict:
-    """The accurate path (`point`) and Stam's analytic shader (`naive`) as ratios to Blinn-Phong."""
+    """The accurate (`point`) and fast paths and Stam's analytic shader (`naive`) as ratios to Blinn-Phong."""
     renderer = Renderer(scene, size)
     try:
-        ms = renderer.time_modes(["blinn-phong", "point", "naive"], frames)
+        ms = renderer.time_modes(["blinn-phong", "point", "fast", "naive"], frames)
     finally:
         renderer.release()
     return {
         "blinn_phong_ms": ms["blinn-phong"],
         "accurate_vs_blinn_phong": ms["point"] / ms["blinn-phong"],
+        "fast_vs_blinn_phong": ms["fast"] / ms["blinn-phong"],
         "analytic_vs_blinn_phong": ms["naive"] / ms["blinn-phong"],
     }
 

@@ -7,9 +7,10 @@
     epsilon = 1e-7 (Taylor truncation)   exposure = 1
 
 Modes: `point` is the accurate path (diffraction/stam.glsl: Taylor/FFT transform, spectral loop), the
-reference supersamples it; `naive` is Stam's analytic grating shader with the structure's dominant
-period; `blinn-phong` is the timing yardstick. The Taylor terms are baked (diffraction/transform.py) and
-cached by content.
+reference supersamples it; `fast` reads the spectrally preintegrated 3D table (diffraction/fast_table.py,
+`fast_table = [256, 256, 32]` samples of u, v, w); `naive` is Stam's analytic grating shader with the
+structure's dominant period; `blinn-phong` is the timing yardstick. The Taylor terms
+(diffraction/transform.py) and the table are baked once and cached by content.
 """
 
 from __future__ import annotations
@@ -52,11 +53,12 @@ class DiffractionMaterial:
     f0: float
     epsilon: float
     exposure: float
+    table_size: tuple[int, int, int] = (256, 256, 32)  # the fast path's u, v, w samples
 
     kind = "diffraction"
 
     def modes(self) -> tuple[str, ...]:
-        return ()
+        return ("fast",)
 
     def diagnostic_modes(self) -> tuple[str, ...]:
         return ("blinn-phong",)
@@ -106,7 +108,35 @@ class DiffractionMaterial:
             "df_period": dominant_period(self.structure),
             "u_exposure": self.exposure,
         }
-        return {"textures": {"df_terms": table, "df_spectrum": spectrum_tex}, "uniforms": uniforms}
+        textures = {"df_terms": table, "df_spectrum": spectrum_tex}
+        textures["df_table"] = self.fast_table(ctx, textures, uniforms)
+        uniforms["df_tableSize"] = tuple(float(n) for n in self.table_size)
+        return {"textures": textures, "uniforms": uniforms}
+
+    def fast_table(self, ctx: moderngl.Context, textures: dict, uniforms: dict) -> moderngl.Texture:
+        """The fast path's 3D table (diffraction/fast_table.py), baked on the GPU and cached by content."""
+        from prefilter.diffraction.fast_table import bake_fast_table
+
+        s = self.structure
+        params = {
+            "pixel": list(s.pixel),
+            "sigma": self.coherence,
+            "epsilon": self.epsilon,
+            "step": self.spectral_step,
+            "size": list(self.table_size),
+            "version": 1,
+        }
+        data = cached_arrays(
+            "df-fast",
+            params,
+            (s.heights,),
+            lambda: {"xyz": bake_fast_table(ctx, textures, uniforms, self.table_size)},
+        )["xyz"]
+        nu, nv, nw = self.table_size
+        table = ctx.texture3d((nu, nv, nw), 4, np.ascontiguousarray(data, np.float32).tobytes(), dtype="f4")
+        table.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        table.repeat_x = table.repeat_y = table.repeat_z = False
+        return table
 
     def release(self, resources: dict) -> None:
         for texture in resources["textures"].values():
@@ -154,4 +184,5 @@ def parse_diffraction(r: Reader, base_dir: Path) -> DiffractionMaterial:
         f0=r.number("f0", 1.0, lo=0.0, hi=1.0),
         epsilon=r.number("epsilon", 1e-7, lo=1e-12, hi=0.1),
         exposure=r.number("exposure", 1.0, lo=0.0),
+        table_size=tuple(int(n) for n in r.vector("fast_table", 3, default=[256, 256, 32])),
     )

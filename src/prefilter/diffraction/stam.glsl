@@ -69,18 +69,37 @@ vec4 df_geometry(vec3 wi, vec3 wo) {
     return vec4(uvw, gain);
 }
 
-// The accurate path: linear sRGB relative reflectance, spectral loop over df_wavelengths samples.
-vec3 df_reflectance(vec3 wi, vec3 wo) {
-    if (wi.z <= 0.0 || wo.z <= 0.0) return vec3(0.0);
-    vec4 geometry = df_geometry(wi, wo);
+// Σ_λ |P̃(k u, k v; k w)|² x (D65 x CIE 1931 weight): XYZ, before the gain (a function of u, v, w only).
+vec3 df_spectralXYZ(vec3 uvw) {
     vec3 xyz = vec3(0.0);
     for (int j = 0; j < 1024; ++j) {
         if (j >= df_wavelengths) break;
         vec4 s = texelFetch(df_spectrum, ivec2(j, 0), 0);
         float k = 2.0 * DF_PI / s.w;
-        vec2 p = df_transform(k * geometry.x, k * geometry.y, k * geometry.z);
+        vec2 p = df_transform(k * uvw.x, k * uvw.y, k * uvw.z);
         xyz += dot(p, p) * s.xyz;
     }
+    return xyz;
+}
+
+// The accurate path: linear sRGB relative reflectance, spectral loop over df_wavelengths samples.
+vec3 df_reflectance(vec3 wi, vec3 wo) {
+    if (wi.z <= 0.0 || wo.z <= 0.0) return vec3(0.0);
+    vec4 geometry = df_geometry(wi, wo);
+    return max(DF_SRGB_FROM_XYZ * (geometry.w * df_spectralXYZ(geometry.xyz)), vec3(0.0));
+}
+
+// The fast path: df_spectralXYZ preintegrated into a 3D table over u, v in [-2, 2] and w in [-2, 0]
+// (texel centres on the grid points; diffraction/fast_table.py), read with one trilinear lookup.
+uniform sampler3D df_table;
+uniform vec3 df_tableSize;
+
+vec3 df_fastReflectance(vec3 wi, vec3 wo) {
+    if (wi.z <= 0.0 || wo.z <= 0.0) return vec3(0.0);
+    vec4 geometry = df_geometry(wi, wo);
+    vec3 grid = (geometry.xyz - vec3(-2.0, -2.0, -2.0)) / vec3(4.0, 4.0, 2.0);  // 0..1 over the grid
+    vec3 coord = (grid * (df_tableSize - 1.0) + 0.5) / df_tableSize;
+    vec3 xyz = texture(df_table, coord).xyz;
     return max(DF_SRGB_FROM_XYZ * (geometry.w * xyz), vec3(0.0));
 }
 
