@@ -146,19 +146,29 @@ def bench_preset(scene: Scene, size, spp: int, frames: int) -> dict:
     return entry
 
 
-def diffraction_timing(scene: Scene, size, frames: int) -> dict:
-    """The accurate (`point`) and fast paths and Stam's analytic shader (`naive`) as ratios to Blinn-Phong."""
+def time_ratios(
+    scene: Scene, size, frames: int, yardstick: str, named: dict[str, str], reference_spp: int = 0
+) -> dict:
+    """Frame times of modes as ratios to a yardstick mode, measured round-robin in one run; `named` maps
+    each result key to a mode ("reference": `reference_spp` jittered passes)."""
     renderer = Renderer(scene, size)
     try:
-        ms = renderer.time_modes(["blinn-phong", "point", "fast", "naive"], frames)
+        ms = renderer.time_modes([yardstick, *(m for m in named.values() if m != REFERENCE)], frames)
+        if reference_spp:
+            ms[REFERENCE] = renderer.time_reference(reference_spp)
     finally:
         renderer.release()
-    return {
-        "blinn_phong_ms": ms["blinn-phong"],
-        "accurate_vs_blinn_phong": ms["point"] / ms["blinn-phong"],
-        "fast_vs_blinn_phong": ms["fast"] / ms["blinn-phong"],
-        "analytic_vs_blinn_phong": ms["naive"] / ms["blinn-phong"],
+    return {f"{yardstick}_ms": ms[yardstick], **{k: ms[m] / ms[yardstick] for k, m in named.items()}}
+
+
+def diffraction_timing(scene: Scene, size, frames: int) -> dict:
+    """The accurate (`point`) and fast paths and Stam's analytic shader (`naive`) as ratios to Blinn-Phong."""
+    modes = {
+        "accurate_vs_blinn_phong": "point",
+        "fast_vs_blinn_phong": "fast",
+        "analytic_vs_blinn_phong": "naive",
     }
+    return time_ratios(scene, size, frames, "blinn-phong", modes)
 
 
 def diffraction_bake_study(sizes=DIFFRACTION_BAKE_SIZES) -> dict:
@@ -184,20 +194,10 @@ def diffraction_bake_study(sizes=DIFFRACTION_BAKE_SIZES) -> dict:
 
 
 def fournier_timing(scene: Scene, size, frames: int) -> dict:
-    """Fournier's timing table as ratios to "no texture": unfiltered (point), filtered (multilobe) and 16x
-    supersampled (4 x 4 jittered point passes), measured in one run."""
-    renderer = Renderer(scene, size)
-    try:
-        ms = renderer.time_modes(["flat", "point", "multilobe"], frames)
-        supersampled = renderer.time_reference(16)
-    finally:
-        renderer.release()
-    return {
-        "no_texture_ms": ms["flat"],
-        "unfiltered": ms["point"] / ms["flat"],
-        "filtered": ms["multilobe"] / ms["flat"],
-        "supersampled_16": supersampled / ms["flat"],
-    }
+    """Fournier's timing table as ratios to "no texture" (`flat`): unfiltered (point), filtered (multilobe)
+    and 16x supersampled (4 x 4 jittered point passes), measured in one run."""
+    modes = {"unfiltered": "point", "filtered": "multilobe", "supersampled_16": REFERENCE}
+    return time_ratios(scene, size, frames, "flat", modes, reference_spp=16)
 
 
 def multilobe_tradeoff_study(scene: Scene, size, spp: int, frames: int) -> list[dict]:

@@ -20,3 +20,17 @@ def call_registered(registry: dict[str, Callable[..., Any]], what: str, name: st
         listed = ", ".join(valid) if valid else "none"
         raise PrefilterError(f"{what} '{name}' has no parameter '{unknown[0]}' (valid: {listed})")
     return function(**params)
+
+
+def call_from_table(table, registry: dict[str, Callable[..., Any]], what: str) -> Any:
+    """A scene's [generator] table (a scene.Reader): `name` picks the function, the other keys are its
+    parameters; errors are reported at the table's key path."""
+    name = table.string("name", required=True)
+    params = {k: v for k, v in table.table.items() if k != "name"}
+    table.used.update(params)
+    try:
+        return call_registered(registry, what, name, params)
+    except PrefilterError as exc:
+        raise table.fail(None, str(exc)) from None
+    except TypeError as exc:  # a parameter of the wrong type
+        raise table.fail(None, f"bad {what} parameter ({exc})") from None

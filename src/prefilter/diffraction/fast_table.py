@@ -19,16 +19,11 @@ from __future__ import annotations
 import numpy as np
 
 from prefilter.gl.program import build_program
+from prefilter.gl.render import FULLSCREEN_TRIANGLE_VERT
 from prefilter.gl.uniforms import bind_samplers, set_uniforms
 
 DEFAULT_SIZE = (256, 256, 32)  # u, v, w samples
 
-_VERT = """
-void main() {
-    vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
-    gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
-}
-"""
 _FRAG = """
 #include "diffraction/stam.glsl"
 uniform vec3 u_tableSize;
@@ -45,7 +40,7 @@ void main() {
 def bake_fast_table(ctx, textures: dict, uniforms: dict, size=DEFAULT_SIZE) -> np.ndarray:
     """(w samples, v samples, u samples, 4) float32: XYZ (and 1) of the spectrally integrated power."""
     nu, nv, nw = size
-    prog = build_program(ctx, _VERT, _FRAG, target="gl330")
+    prog = build_program(ctx, FULLSCREEN_TRIANGLE_VERT, _FRAG, target="gl330")
     vao = ctx.vertex_array(prog, [])
     target = ctx.texture((nu, nv), 4, dtype="f4")
     fbo = ctx.framebuffer([target])

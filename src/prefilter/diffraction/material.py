@@ -24,9 +24,10 @@ import numpy as np
 
 from prefilter import PrefilterError
 from prefilter.bake_cache import cached_arrays
-from prefilter.diffraction.nanostructure import Nanostructure, generate, read_heightfield
+from prefilter.diffraction.nanostructure import GENERATORS, Nanostructure, read_heightfield
 from prefilter.diffraction.spectrum import spectral_weights
 from prefilter.gl.uniforms import bind_samplers, set_uniforms
+from prefilter.registry import call_from_table
 from prefilter.scene import Reader, register_material
 
 SHADER_DIR = Path(__file__).resolve().parent
@@ -153,13 +154,7 @@ def parse_diffraction(r: Reader, base_dir: Path) -> DiffractionMaterial:
     if gen is not None and r.has("structure"):
         raise r.fail("generator", "give either a generator or a structure file, not both")
     if gen is not None:
-        name = gen.string("name", required=True)
-        params = {k: v for k, v in gen.table.items() if k != "name"}
-        gen.used.update(params)
-        try:
-            structure = generate(name, **params)
-        except PrefilterError as exc:
-            raise gen.fail(None, str(exc)) from None
+        structure = call_from_table(gen, GENERATORS, "nanostructure generator")
     elif r.has("structure"):
         path = Path(r.string("structure"))
         path = path if path.is_absolute() else base_dir / path

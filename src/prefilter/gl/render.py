@@ -30,7 +30,7 @@ from prefilter.scene import Light, Scene, SceneObject
 BASE_MODES = ("point", "naive")
 REFERENCE = "reference"
 
-_ACCUMULATE_VERT = """
+FULLSCREEN_TRIANGLE_VERT = """
 void main() {
     vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
     gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
@@ -145,7 +145,7 @@ class Renderer:
         self.fbo = ctx.framebuffer([self.colour], self.depth)
         self.accum_tex = ctx.texture((w, h), 4, dtype="f4")
         self.accum = ctx.framebuffer([self.accum_tex])
-        self.accumulate = build_program(ctx, _ACCUMULATE_VERT, _ACCUMULATE_FRAG, target="gl330")
+        self.accumulate = build_program(ctx, FULLSCREEN_TRIANGLE_VERT, _ACCUMULATE_FRAG, target="gl330")
         self.accumulate_vao = ctx.vertex_array(self.accumulate, [])
 
     # -- drawing -------------------------------------------------------------------------------

@@ -33,9 +33,10 @@ import numpy as np
 
 from prefilter import PrefilterError
 from prefilter.gl.uniforms import bind_samplers, set_uniforms
-from prefilter.normals.normal_maps import SurfaceMap, generate, load_surface
+from prefilter.normals.normal_maps import GENERATORS, SurfaceMap, load_surface
 from prefilter.normals.peaks import lobe
 from prefilter.normals.pyramid import NormalPyramid, PyramidOptions, build_pyramid
+from prefilter.registry import call_from_table
 from prefilter.scene import Reader, register_material
 
 SHADER_DIR = Path(__file__).resolve().parent
@@ -312,15 +313,7 @@ def parse_normal_map(r: Reader, base_dir: Path) -> NormalsMaterial:
     if gen is not None and paths:
         raise r.fail("generator", "give either a generator or normal_map/height_map files, not both")
     if gen is not None:
-        name = gen.string("name", required=True)
-        params = {k: v for k, v in gen.table.items() if k != "name"}
-        gen.used.update(params)
-        try:
-            surface = generate(name, **params)
-        except PrefilterError as exc:
-            raise gen.fail(None, str(exc)) from None
-        except TypeError as exc:
-            raise gen.fail(None, f"bad generator parameter ({exc})") from None
+        surface = call_from_table(gen, GENERATORS, "surface generator")
     elif paths:
         key = "normal_map" if "normal_map" in paths else "height_map"
         try:
