@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from prefilter import PrefilterError
-from prefilter.normals.normal_maps import _one_line, _read_exr, _read_png, _write_exr
+from prefilter.image_data import one_line, read_exr, read_png, write_exr
 from prefilter.registry import call_registered
 
 MAX_PIXEL_UM = 0.1  # coarsest pixel that resolves visible wavelengths
@@ -131,7 +131,7 @@ def _read_npy(path: Path) -> np.ndarray:
     try:
         data = np.load(path, allow_pickle=False)
     except Exception as exc:  # ValueError, OSError, EOFError, pickle refusal ...
-        raise PrefilterError(f"{path}: cannot read .npy ({_one_line(exc)})") from None
+        raise PrefilterError(f"{path}: cannot read .npy ({one_line(exc)})") from None
     if not isinstance(data, np.ndarray):
         raise PrefilterError(f"{path}: expected a single 2D array in the .npy file")
     if data.ndim != 2:
@@ -157,7 +157,7 @@ def read_heightfield(path: str | os.PathLike, pixel_um, height_scale_um: float =
     if ext == ".npy":
         values = _read_npy(path)
     else:
-        data = _read_png(path)[0] if ext == ".png" else _read_exr(path)[0]
+        data = read_png(path)[0] if ext == ".png" else read_exr(path)[0]
         first = data[:, :, 0]
         bad = ~np.isfinite(first)
         if bad.any():
@@ -185,7 +185,7 @@ def write_heightfield(path: str | os.PathLike, structure: Nanostructure) -> Path
             with open(tmp, "wb") as f:
                 np.save(f, np.ascontiguousarray(h), allow_pickle=False)
         else:
-            _write_exr(tmp, "Y", h[::-1])
+            write_exr(tmp, "Y", h[::-1])
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
