@@ -103,11 +103,11 @@ def bench_preset(scene: Scene, size, spp: int, frames: int) -> dict:
         "far_vs_near": {m: far_ms[m] / metrics[m]["ms"] for m in ["point", *filtered]},
     }
     flip = {m: metrics[m]["flip"] for m in modes}
-    checks = {
-        "reference_ge_300_filtered": all(v >= 300 for v in entry["reference_vs_filtered"].values()),
-        "far_near_within_10pct": all(abs(entry["far_vs_near"][m] - 1) <= 0.10 for m in filtered),
-    }
+    checks = {}
     hart = [m for m in filtered if m.startswith("hart-")]
+    if hart or "gaussian" in filtered:  # the foundation issue's targets for texture filters
+        checks["reference_ge_300_filtered"] = all(v >= 300 for v in entry["reference_vs_filtered"].values())
+        checks["far_near_within_10pct"] = all(abs(entry["far_vs_near"][m] - 1) <= 0.10 for m in filtered)
     if hart:
         entry["best_hart"] = best_hart = min(hart, key=flip.get)
         checks["hart_flip_le_half_point"] = flip[best_hart] <= 0.5 * flip["point"]
