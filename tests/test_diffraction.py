@@ -188,3 +188,60 @@ def test_fast_path_agrees_with_the_accurate_path_within_delta_e_1():
     assert point.max() > 0.05  # the orders are in view
     scores = compare(fast, point, mask)
     assert scores["delta_e"] <= 1.0, scores
+
+
+def test_glsl_periodic_factor_equals_the_brute_force_sum_including_its_singular_points():
+    from prefilter.diffraction.transform import periodic_factor
+
+    rng = np.random.default_rng(9)
+    counts = rng.integers(1, 40, 300).astype(float)
+    phase = np.concatenate(
+        [rng.uniform(-30, 30, 200), 2 * np.pi * rng.integers(-4, 5, 100) + rng.normal(0, 1e-4, 100)]
+    )
+    got = glsl_eval(
+        "df_periodicFactor(p, n)",
+        {"p": phase, "n": counts},
+        1,
+        includes=INCLUDES,
+        defines={"DF_TILING": True},
+    ).ravel()
+    brute = np.array(
+        [
+            abs(np.exp(-1j * p * np.arange(int(n))).sum()) ** 2 / n**2
+            for p, n in zip(phase, counts, strict=True)
+        ]
+    )
+    np.testing.assert_allclose(got, brute, atol=2e-4)
+    bake = np.array([periodic_factor(p, 1.0, int(n)) / n**2 for p, n in zip(phase, counts, strict=True)])
+    np.testing.assert_allclose(bake, brute, atol=1e-9)
+
+
+def test_tiled_flat_mirror_is_white_in_the_specular_direction_and_dark_between_orders():
+    flat = Nanostructure(np.zeros((32, 32)), (0.05, 0.05), "flat")
+    terms = taylor_terms(flat.heights, flat.pixel)
+    textures, uniforms, _ = _textures(terms)
+    theta = np.radians([0.0, 30.0, 60.0])
+    wi = np.stack([np.sin(theta), np.zeros_like(theta), np.cos(theta)], 1)
+    mirror = wi * [-1, -1, 1]
+    off = np.stack([-np.sin(theta + 0.05), np.zeros_like(theta), np.cos(theta + 0.05)], 1)
+    got = glsl_eval(
+        "df_reflectance(wi, wo)",
+        {"wi": np.concatenate([wi, wi]), "wo": np.concatenate([mirror, off])},
+        3,
+        includes=INCLUDES,
+        defines={"DF_TILING": True},
+        uniforms={**uniforms, "df_tiles": (40.0, 40.0)},
+        textures=textures,
+    )
+    np.testing.assert_allclose(got[:3], 1.0, atol=2e-3)
+    assert got[3:].max() < 0.05  # between the 40-slit orders
+    for t in textures.values():
+        t.release()
+
+
+def test_tiles_are_read_from_the_scene(tmp_path):
+    np.save(tmp_path / "flat.npy", np.zeros((16, 16)))
+    scene = _scene(f'tiles = [40, 12]\nstructure = "{tmp_path / "flat.npy"}"\npixel_um = 0.05')
+    assert scene.objects[0].material.tiles == (40, 12)
+    with pytest.raises(SceneError, match="tiles"):
+        _scene(f'tiles = [0, 12]\nstructure = "{tmp_path / "flat.npy"}"\npixel_um = 0.05')

@@ -5,6 +5,7 @@
     grooves = "straight" | "circular"   groove_angle = 0 (degrees)   centre = [0.5, 0.5] (uv, circular)
     coherence_um = 16.25 (σ of the Gaussian window)   spectral_step_nm = 5   f0 = 1 (Schlick)
     epsilon = 1e-7 (Taylor truncation)   exposure = 1
+    tiles = [Nx, Ny]: Single §2.7's periodic factor for Nx x Ny copies of the patch instead of the window
 
 Modes: `point` is the accurate path (diffraction/stam.glsl: Taylor/FFT transform, spectral loop), the
 reference supersamples it; `fast` reads the spectrally preintegrated 3D table (diffraction/fast_table.py,
@@ -55,6 +56,7 @@ class DiffractionMaterial:
     epsilon: float
     exposure: float
     table_size: tuple[int, int, int] = (256, 256, 32)  # the fast path's u, v, w samples
+    tiles: tuple[int, int] | None = None  # Single §2.7: the patch repeated (Nx, Ny) times, no window
 
     kind = "diffraction"
 
@@ -71,7 +73,12 @@ class DiffractionMaterial:
         return PACKAGE_ROOT / "glsl/common/tangent_frame.vert", SHADER_DIR / "diffraction.frag"
 
     def defines(self, options) -> dict[str, object]:
-        return {"DF_CIRCULAR": True} if self.circular else {}
+        defines: dict[str, object] = {}
+        if self.circular:
+            defines["DF_CIRCULAR"] = True
+        if self.tiles is not None:
+            defines["DF_TILING"] = True
+        return defines
 
     def terms(self) -> dict[str, np.ndarray]:
         """The baked Taylor terms: coefficients (N+1, H, W) complex64 and the bin spacing (cached)."""
@@ -108,6 +115,7 @@ class DiffractionMaterial:
             "df_centre": self.centre,
             "df_period": dominant_period(self.structure),
             "u_exposure": self.exposure,
+            "df_tiles": tuple(float(n) for n in (self.tiles or (1, 1))),
         }
         textures = {"df_terms": table, "df_spectrum": spectrum_tex}
         textures["df_table"] = self.fast_table(ctx, textures, uniforms)
@@ -125,6 +133,7 @@ class DiffractionMaterial:
             "epsilon": self.epsilon,
             "step": self.spectral_step,
             "size": list(self.table_size),
+            "tiles": list(self.tiles) if self.tiles else None,
             "version": 1,
         }
         data = cached_arrays(
@@ -180,4 +189,14 @@ def parse_diffraction(r: Reader, base_dir: Path) -> DiffractionMaterial:
         epsilon=r.number("epsilon", 1e-7, lo=1e-12, hi=0.1),
         exposure=r.number("exposure", 1.0, lo=0.0),
         table_size=tuple(int(n) for n in r.vector("fast_table", 3, default=[256, 256, 32])),
+        tiles=_tiles(r),
     )
+
+
+def _tiles(r: Reader) -> tuple[int, int] | None:
+    if not r.has("tiles"):
+        return None
+    tiles = r.vector("tiles", 2)
+    if any(n < 1 or n > 100000 or n != int(n) for n in tiles):
+        raise r.fail("tiles", f"expected two whole numbers of copies >= 1, got {list(tiles)}")
+    return int(tiles[0]), int(tiles[1])

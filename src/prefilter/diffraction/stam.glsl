@@ -69,6 +69,30 @@ vec4 df_geometry(vec3 wi, vec3 wo) {
     return vec4(uvw, gain);
 }
 
+#ifdef DF_TILING
+// Single §2.7: instead of the coherence window, the patch repeated df_tiles = (Nx, Ny) times. The power is
+// the patch's (its nearest DFT bin) times the periodic factor |Σ_n e^{-i α n T}|² / N² per axis, which is
+// sin²(N φ / 2) / (N sin(φ / 2))² with φ = α T reduced to [-π, π) and its series near φ = 0 (the guard at
+// the singular points φ = 2π j, where the factor is 1). Normalised so that a flat mirror gives 1.
+uniform vec2 df_tiles;
+
+float df_periodicFactor(float phase, float count) {
+    float p = phase - 2.0 * DF_PI * floor(phase / (2.0 * DF_PI) + 0.5);
+    if (abs(p) < 1e-3) return max(1.0 - (count * count - 1.0) * p * p / 12.0, 0.0);
+    float r = sin(0.5 * count * p) / (count * sin(0.5 * p));
+    return r * r;
+}
+
+float df_tiledPower(float alpha, float beta, float kw) {
+    vec2 at = vec2(alpha, beta) / df_bins.xy;
+    ivec2 bin = ivec2(floor(at + 0.5));
+    vec2 acc = df_term(bin, df_order);
+    for (int n = df_order - 1; n >= 0; --n) acc = acc * kw + df_term(bin, n);
+    return dot(acc, acc) * df_periodicFactor(2.0 * DF_PI * at.x, df_tiles.x) *
+           df_periodicFactor(2.0 * DF_PI * at.y, df_tiles.y);
+}
+#endif
+
 // Σ_λ |P̃(k u, k v; k w)|² x (D65 x CIE 1931 weight): XYZ, before the gain (a function of u, v, w only).
 vec3 df_spectralXYZ(vec3 uvw) {
     vec3 xyz = vec3(0.0);
@@ -76,8 +100,12 @@ vec3 df_spectralXYZ(vec3 uvw) {
         if (j >= df_wavelengths) break;
         vec4 s = texelFetch(df_spectrum, ivec2(j, 0), 0);
         float k = 2.0 * DF_PI / s.w;
+#ifdef DF_TILING
+        xyz += df_tiledPower(k * uvw.x, k * uvw.y, k * uvw.z) * s.xyz;
+#else
         vec2 p = df_transform(k * uvw.x, k * uvw.y, k * uvw.z);
         xyz += dot(p, p) * s.xyz;
+#endif
     }
     return xyz;
 }
