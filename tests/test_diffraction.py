@@ -60,26 +60,34 @@ def test_glsl_taylor_transform_equals_the_bake():
         t.release()
 
 
-def test_flat_mirror_is_white_in_the_specular_direction_and_dark_away_from_it():
+def _flat_mirror(theta_deg, offset, sigma=65 / 4, defines=None, uniforms=None):
+    """GLSL reflectance of a flat surface lit from θ_i: (in the mirror direction, `offset` rad away)."""
     flat = Nanostructure(np.zeros((32, 32)), (0.05, 0.05), "flat")
-    terms = taylor_terms(flat.heights, flat.pixel, sigma=10.0)
-    textures, uniforms, _ = _textures(terms)
-    theta = np.radians([0.0, 20.0, 50.0, 70.0])
+    textures, base, _ = _textures(taylor_terms(flat.heights, flat.pixel, sigma=sigma))
+    theta = np.radians(theta_deg)
     wi = np.stack([np.sin(theta), np.zeros_like(theta), np.cos(theta)], 1)
     mirror = wi * [-1, -1, 1]
-    off = np.stack([-np.sin(theta + 0.2), np.zeros_like(theta), np.cos(theta + 0.2)], 1)
-    got = glsl_eval(
-        "df_reflectance(wi, wo)",
-        {"wi": np.concatenate([wi, wi]), "wo": np.concatenate([mirror, off])},
-        3,
-        includes=INCLUDES,
-        uniforms=uniforms,
-        textures=textures,
-    )
-    np.testing.assert_allclose(got[:4], 1.0, atol=2e-3)  # D65 white through XYZ -> sRGB
-    assert got[4:].max() < 1e-6
-    for t in textures.values():
-        t.release()
+    off = np.stack([-np.sin(theta + offset), np.zeros_like(theta), np.cos(theta + offset)], 1)
+    try:
+        got = glsl_eval(
+            "df_reflectance(wi, wo)",
+            {"wi": np.concatenate([wi, wi]), "wo": np.concatenate([mirror, off])},
+            3,
+            includes=INCLUDES,
+            defines=defines,
+            uniforms={**base, **(uniforms or {})},
+            textures=textures,
+        )
+    finally:
+        for t in textures.values():
+            t.release()
+    return got[: len(theta)], got[len(theta) :]
+
+
+def test_flat_mirror_is_white_in_the_specular_direction_and_dark_away_from_it():
+    mirror, off = _flat_mirror([0.0, 20.0, 50.0, 70.0], 0.2, sigma=10.0)
+    np.testing.assert_allclose(mirror, 1.0, atol=2e-3)  # D65 white through XYZ -> sRGB
+    assert off.max() < 1e-6
 
 
 def test_glsl_reflectance_of_a_grating_equals_stams_formula_summed_over_the_spectrum():
@@ -217,26 +225,10 @@ def test_glsl_periodic_factor_equals_the_brute_force_sum_including_its_singular_
 
 
 def test_tiled_flat_mirror_is_white_in_the_specular_direction_and_dark_between_orders():
-    flat = Nanostructure(np.zeros((32, 32)), (0.05, 0.05), "flat")
-    terms = taylor_terms(flat.heights, flat.pixel)
-    textures, uniforms, _ = _textures(terms)
-    theta = np.radians([0.0, 30.0, 60.0])
-    wi = np.stack([np.sin(theta), np.zeros_like(theta), np.cos(theta)], 1)
-    mirror = wi * [-1, -1, 1]
-    off = np.stack([-np.sin(theta + 0.05), np.zeros_like(theta), np.cos(theta + 0.05)], 1)
-    got = glsl_eval(
-        "df_reflectance(wi, wo)",
-        {"wi": np.concatenate([wi, wi]), "wo": np.concatenate([mirror, off])},
-        3,
-        includes=INCLUDES,
-        defines={"DF_TILING": True},
-        uniforms={**uniforms, "df_tiles": (40.0, 40.0)},
-        textures=textures,
-    )
-    np.testing.assert_allclose(got[:3], 1.0, atol=2e-3)
-    assert got[3:].max() < 0.05  # between the 40-slit orders
-    for t in textures.values():
-        t.release()
+    tiled = {"defines": {"DF_TILING": True}, "uniforms": {"df_tiles": (40.0, 40.0)}}
+    mirror, off = _flat_mirror([0.0, 30.0, 60.0], 0.05, **tiled)
+    np.testing.assert_allclose(mirror, 1.0, atol=2e-3)
+    assert off.max() < 0.05  # between the 40-slit orders
 
 
 def test_tiles_are_read_from_the_scene(tmp_path):
