@@ -150,6 +150,26 @@ def cmd_bake(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_export(args: argparse.Namespace) -> int:
+    from prefilter.export import export_scene
+    from prefilter.gl.render import RenderOptions
+    from prefilter.scene import resolve_scene
+
+    scene = resolve_scene(args.scene)
+    if args.size:
+        scene.size = args.size
+    options = RenderOptions(quant_bits=args.quant_bits, reduced=args.reduced)
+    print(export_scene(scene, Path(args.output), options))
+    return 0
+
+
+def cmd_view(args: argparse.Namespace) -> int:
+    from prefilter.viewer_server import serve
+
+    serve(args.scene, port=args.port)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="prefilter",
@@ -160,15 +180,16 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("list", help="list the built-in scene presets and their modes")
     p.set_defaults(func=cmd_list)
 
-    def scene_args(p: argparse.ArgumentParser) -> None:
+    def scene_args(p: argparse.ArgumentParser, reference: bool = True) -> None:
         p.add_argument("scene", help="a preset name (see `prefilter list`) or a scene .toml file")
         p.add_argument("--size", type=_size, default=None, help="image size WxH (default: the scene's)")
-        p.add_argument(
-            "--spp",
-            type=_positive,
-            default=1024,
-            help="reference samples per pixel, N x N stratified (default 1024 = 32 x 32)",
-        )
+        if reference:
+            p.add_argument(
+                "--spp",
+                type=_positive,
+                default=1024,
+                help="reference samples per pixel, N x N stratified (default 1024 = 32 x 32)",
+            )
         p.add_argument(
             "--quant-bits",
             type=_positive,
@@ -221,6 +242,21 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--json", default=None, help="also write the bake reports as JSON to this file")
     p.set_defaults(func=cmd_bake)
+
+    p = sub.add_parser(
+        "export",
+        help="write a scene's shaders (330 core, 300 es), baked tables, meshes and README for engines",
+    )
+    scene_args(p, reference=False)
+    p.add_argument("-o", "--output", required=True, help="output directory (docs/export.md describes it)")
+    p.set_defaults(func=cmd_export)
+
+    p = sub.add_parser(
+        "view", help="serve the WebGL2 viewer on 127.0.0.1 (prints the address; opens nothing)"
+    )
+    p.add_argument("scene", nargs="?", default=None, help="preset or scene .toml to open first")
+    p.add_argument("--port", type=int, default=0, help="port (default: a free one)")
+    p.set_defaults(func=cmd_view)
     return parser
 
 

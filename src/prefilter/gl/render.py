@@ -28,6 +28,7 @@ from prefilter.gl.uniforms import set_uniforms
 from prefilter.scene import Light, Scene, SceneObject
 
 BASE_MODES = ("point", "naive")
+MAX_LIGHTS = 4  # SH_MAX_LIGHTS in glsl/common/shading.glsl
 REFERENCE = "reference"
 
 FULLSCREEN_TRIANGLE_VERT = """
@@ -62,6 +63,17 @@ def scene_modes(scene: Scene, diagnostics: bool = False) -> list[str]:
     return modes
 
 
+def program_defines(
+    obj: SceneObject, mode: str, light_count: int, options: RenderOptions
+) -> dict[str, object]:
+    """The #defines of an object's program in a mode (the exporter assembles with the same ones)."""
+    return {
+        mode_define(mode): True,
+        "SH_LIGHT_COUNT": light_count,  # lets shaders unroll loops over the lights
+        **obj.material.defines(options),
+    }
+
+
 def build_mesh(obj: SceneObject) -> Mesh:
     if obj.shape == "mesh":
         return load_mesh(obj.mesh_path)
@@ -93,11 +105,7 @@ class _GPUObject:
     def program(self, mode: str) -> tuple[moderngl.Program, moderngl.VertexArray]:
         if mode not in self.programs:
             vertex, fragment = self.obj.material.shader_sources()
-            defines = {
-                mode_define(mode): True,
-                "SH_LIGHT_COUNT": self.light_count,  # lets shaders unroll loops over the lights
-                **self.obj.material.defines(self.options),
-            }
+            defines = program_defines(self.obj, mode, self.light_count, self.options)
             prog = build_program(self.ctx, vertex, fragment, target=self.target, defines=defines)
             layout, names = [], []
             for name, n in VERTEX_LAYOUT:
@@ -134,7 +142,7 @@ class Renderer:
         self.ctx = ctx = gl_context()
         self.scene, self.options = scene, options or RenderOptions()
         self.size = size or scene.size
-        lights = min(len(scene.lights), 4)
+        lights = min(len(scene.lights), MAX_LIGHTS)
         self.objects = [
             _GPUObject(ctx, obj, build_mesh(obj), target, self.options, lights) for obj in scene.objects
         ]
@@ -163,31 +171,7 @@ class Renderer:
         for gpu in self.objects:
             obj = gpu.obj
             prog, vao = gpu.program(mode)
-            world_from_object = obj.world_from_object
-            object_from_world = np.linalg.inv(world_from_object)
-            if camera.projection == "orthographic":  # rays along the view direction (w = 0)
-                eye = np.append(object_from_world[:3, :3] @ (camera.target - camera.eye), 0.0)
-            else:
-                eye = object_from_world @ np.append(camera.eye, 1.0)
-            lights = [x.at(t) for x in scene.lights[:4]]
-            lights += [Light(np.zeros(3), np.zeros(3))] * (4 - len(lights))
-            set_uniforms(
-                prog,
-                {
-                    "u_clipFromObject": (clip_from_world @ world_from_object).T,  # column-major for GLSL
-                    "u_worldNormalFromObject": np.linalg.inv(
-                        world_from_object[:3, :3]
-                    ),  # (M^-1)^T, transposed
-                    "u_jitter": jitter,
-                    "u_eyeObject": eye,  # ray-marched materials: the eye (w = 1) or view direction (w = 0)
-                    "u_objectFromWorld": object_from_world.T,
-                    "sh_lit": int(obj.lit),
-                    "sh_ambient": scene.ambient if scene.lights else 1.0,
-                    "sh_lightCount": len(scene.lights),
-                    "sh_lightDirection": np.stack([x.direction for x in lights]),
-                    "sh_lightColour": np.stack([x.colour for x in lights]),
-                },
-            )
+            set_uniforms(prog, frame_uniforms(scene, obj, clip_from_world, camera, t, jitter))
             obj.material.bind(prog, gpu.resources, t, self.options)
             if obj.double_sided:
                 ctx.disable(moderngl.CULL_FACE)
@@ -294,6 +278,37 @@ class Renderer:
             self.accumulate,
         ):
             obj.release()
+
+
+def frame_uniforms(
+    scene: Scene,
+    obj: SceneObject,
+    clip_from_world: np.ndarray,
+    camera,
+    t: float,
+    jitter: tuple[float, float] = (0.0, 0.0),
+) -> dict[str, object]:
+    """The renderer's per-frame uniforms of one object (docs/export.md lists them for engines)."""
+    world_from_object = obj.world_from_object
+    object_from_world = np.linalg.inv(world_from_object)
+    if camera.projection == "orthographic":  # rays along the view direction (w = 0)
+        eye = np.append(object_from_world[:3, :3] @ (camera.target - camera.eye), 0.0)
+    else:
+        eye = object_from_world @ np.append(camera.eye, 1.0)
+    lights = [x.at(t) for x in scene.lights[:MAX_LIGHTS]]
+    lights += [Light(np.zeros(3), np.zeros(3))] * (MAX_LIGHTS - len(lights))
+    return {
+        "u_clipFromObject": (clip_from_world @ world_from_object).T,  # column-major for GLSL
+        "u_worldNormalFromObject": np.linalg.inv(world_from_object[:3, :3]),  # (M^-1)^T, transposed
+        "u_jitter": jitter,
+        "u_eyeObject": eye,  # ray-marched materials: the eye (w = 1) or view direction (w = 0)
+        "u_objectFromWorld": object_from_world.T,
+        "sh_lit": int(obj.lit),
+        "sh_ambient": scene.ambient if scene.lights else 1.0,
+        "sh_lightCount": len(scene.lights),
+        "sh_lightDirection": np.stack([x.direction for x in lights]),
+        "sh_lightColour": np.stack([x.colour for x in lights]),
+    }
 
 
 def composite(rgba: np.ndarray, background: np.ndarray) -> np.ndarray:

@@ -30,3 +30,42 @@ def bind_samplers(prog: moderngl.Program, textures: dict[str, moderngl.Texture],
         if name in prog:
             texture.use(location=unit)
             prog[name].value = unit
+            if isinstance(prog, BindingRecorder):
+                prog.textures[name] = texture
+
+
+class BindingRecorder:
+    """Stands in for a program in a material's `bind`: records every uniform value and sampler texture.
+
+    The exporter and the viewer bundle use it to learn a material's state without per-material code.
+    Every name is accepted (`in` is always true), so the record is the union over all modes' programs.
+    """
+
+    def __init__(self) -> None:
+        self.values: dict[str, object] = {}
+        self.textures: dict[str, moderngl.Texture] = {}
+
+    def __contains__(self, name: str) -> bool:
+        return True
+
+    def __getitem__(self, name: str) -> _RecordedUniform:
+        return _RecordedUniform(self.values, name)
+
+
+class _RecordedUniform:
+    array_length = 1 << 20  # nothing is cut: the record keeps whole arrays
+    dimension = 1
+
+    def __init__(self, values: dict[str, object], name: str):
+        self._values, self._name = values, name
+
+    @property
+    def value(self) -> object:
+        return self._values[self._name]
+
+    @value.setter
+    def value(self, value: object) -> None:
+        self._values[self._name] = value
+
+    def write(self, data: bytes) -> None:
+        self._values[self._name] = np.frombuffer(data, dtype=np.float32).copy()
