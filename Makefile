@@ -27,7 +27,12 @@ demo: setup
 	$(VENV)/bin/prefilter compare wood-teapot -o out/wood-teapot
 	$(VENV)/bin/prefilter compare noise-plane -o out/noise-plane
 
-test: setup
+# Debian's Chromium for the viewer's browser tests (Playwright drives it; it downloads no browser).
+.cache/chromium-ok: scripts/ensure-chromium.sh
+	bash scripts/ensure-chromium.sh
+	mkdir -p .cache && touch $@
+
+test: setup .cache/chromium-ok
 	$(VENV)/bin/ruff check src tests
 	$(VENV)/bin/ruff format --check src tests
 	$(VENV)/bin/pytest -q

@@ -1,0 +1,188 @@
+"""The WebGL2 viewer in Debian's Chromium (headless, driven by Playwright) against `prefilter view`:
+it loads with no console errors and a real WebGL2 context, draws, changes with the mode, matches the
+moderngl render of the same view within FLIP 0.05, lists every preset, and serves nothing outside its
+root (raw HTTP requests, which browsers would normalise)."""
+
+import http.client
+import io
+import json
+import subprocess
+import sys
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from prefilter.gl.render import Renderer, composite
+from prefilter.images import srgb_to_linear
+from prefilter.metrics import flip_map
+from prefilter.scene import preset_names, resolve_scene
+
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+    "--ignore-gpu-blocklist",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
+# the same view in the browser (es300 shaders through ANGLE/SwiftShader) and in moderngl (gl330, llvmpipe)
+FIXED_VIEWS = {
+    "marble-cube": "gaussian",
+    "terrain-contours": "gaussian",
+    "micro-heights-sphere": "surface-filter",
+    "normals-hemispheres-plane-shadowed": "multilobe",
+    "diffraction-grating-plane": "fast",
+}
+
+
+@pytest.fixture(scope="module")
+def server():
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "prefilter.cli", "view", "--port", "0"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    line = proc.stdout.readline()
+    if not line.startswith("prefilter viewer: http://127.0.0.1:"):
+        proc.kill()
+        pytest.fail(f"prefilter view did not start: {line!r} {proc.stderr.read()}")
+    url = line.split(": ", 1)[1].strip()
+    yield url
+    proc.terminate()
+    proc.wait(timeout=10)
+
+
+@pytest.fixture(scope="module")
+def browser():
+    if not CHROMIUM.exists():
+        pytest.fail("Debian's chromium is missing: `make test` installs it (apt-get install -y chromium)")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=str(CHROMIUM), headless=True, args=CHROMIUM_ARGS)
+        yield b
+        b.close()
+
+
+class Page:
+    """A page of the viewer with its console errors collected."""
+
+    def __init__(self, browser, url: str):
+        self.page = browser.new_page()
+        self.errors: list[str] = []
+        self.page.on("console", lambda m: self.errors.append(m.text) if m.type == "error" else None)
+        self.page.on("pageerror", lambda e: self.errors.append(str(e)))
+        self.page.goto(url)
+        self.wait_ready()
+
+    def wait_ready(self, timeout_ms: int = 120_000) -> None:
+        self.page.wait_for_function(
+            "() => window.prefilterViewer && (window.prefilterViewer.ready || window.prefilterViewer.error)",
+            timeout=timeout_ms,
+        )
+        error = self.page.evaluate("window.prefilterViewer.error")
+        assert error is None, f"viewer error: {error}"
+
+    def canvas(self) -> np.ndarray:
+        """The canvas as 8-bit sRGB (H, W, 3)."""
+        png = self.page.locator("canvas").first.screenshot()
+        return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))
+
+    def close(self) -> None:
+        self.page.close()
+
+
+def test_page_loads_without_console_errors_and_draws(server, browser):
+    page = Page(browser, server + "?scene=marble-cube")
+    try:
+        assert page.page.evaluate("window.prefilterViewer.webgl2") is True
+        image = page.canvas()
+        background = image[0, 0].astype(int)
+        differs = np.abs(image.astype(int) - background).max(axis=-1) > 8
+        assert differs.mean() > 0.2, "canvas is (nearly) blank"
+        assert image.std() > 10
+        assert page.errors == []
+    finally:
+        page.close()
+
+
+def test_switching_modes_changes_the_image(server, browser):
+    page = Page(browser, server + "?scene=zone-plate&mode=point")
+    try:
+        point = page.canvas().astype(float)
+        page.page.evaluate("window.prefilterViewer.setMode('gaussian')")
+        assert page.page.evaluate("window.prefilterViewer.mode") == "gaussian"
+        filtered = page.canvas().astype(float)
+        assert np.abs(point - filtered).mean() > 2.0, "mode switch did not change the image"
+        assert page.errors == []
+    finally:
+        page.close()
+
+
+@pytest.mark.parametrize("name", sorted(FIXED_VIEWS))
+def test_fixed_view_matches_the_moderngl_render(name, server, browser):
+    mode = FIXED_VIEWS[name]
+    scene = resolve_scene(name)
+    w, h = scene.size
+    page = Page(browser, server + f"?scene={name}&mode={mode}&fixed=1")
+    try:
+        shot = page.canvas()
+        assert page.errors == []
+    finally:
+        page.close()
+    assert shot.shape == (h, w, 3), f"canvas is {shot.shape[1]}x{shot.shape[0]}, scene is {w}x{h}"
+    renderer = Renderer(scene)
+    try:
+        expected = composite(renderer.render(mode), scene.background)
+    finally:
+        renderer.release()
+    viewer = srgb_to_linear(shot / 255.0).astype(np.float32)
+    error = float(flip_map(viewer, np.clip(expected, 0.0, 1.0)).mean())
+    assert error <= 0.05, f"{name} {mode}: FLIP {error:.4f} > 0.05 between the browser and moderngl"
+
+
+def test_every_preset_is_offered(server):
+    listing = json.loads(urllib.request.urlopen(server.split("?")[0] + "presets.json").read())
+    assert [p["name"] for p in listing] == preset_names()
+
+
+def test_paths_outside_the_root_are_404(server):
+    host, port = server.split("//")[1].split("/")[0].split(":")
+    for path in (
+        "/../pyproject.toml",
+        "/%2e%2e/pyproject.toml",
+        "/..%2f..%2fetc/passwd",
+        "/bundles/marble-cube/../../../pyproject.toml",
+        "/bundles/marble-cube/%2e%2e/%2e%2e/etc/passwd",
+        "//etc/passwd",
+        "/bundles/",
+        "/bundles/no-such-scene/scene.json",
+        "/",  # served: index.html
+    ):
+        conn = http.client.HTTPConnection(host, int(port), timeout=120)
+        conn.request("GET", path)
+        response = conn.getresponse()
+        body = response.read()
+        conn.close()
+        if path == "/":
+            assert response.status == 200 and b"<canvas" in body
+        else:
+            assert response.status == 404, f"{path}: {response.status}"
+            assert b"root:" not in body and b"[project]" not in body
+
+
+def test_directories_are_not_listed(server, browser):
+    page = browser.new_page()
+    try:
+        for path in ("/bundles/marble-cube/", "/bundles/marble-cube/tables/"):
+            response = page.goto(server.split("?")[0].rstrip("/") + path)
+            assert response.status == 404, path
+    finally:
+        page.close()
