@@ -15,10 +15,10 @@ in vec4 v_tangent;
 in vec3 v_toEye;
 in vec2 v_uv;
 
-uniform float df_angle;
-uniform vec2 df_centre;
+uniform float df_angle;  // @param -3.14159..3.14159 Groove angle: radians from the mesh's bitangent (the across-groove axis is the tangent rotated by it); straight grooves only (unused with DF_CIRCULAR); every mode follows
+uniform vec2 df_centre;  // @param -0.5..1.5 Groove centre: uv centre of circular grooves (DF_CIRCULAR only); every mode follows
 uniform float df_period;  // µm, for the analytic baseline
-uniform float u_exposure;
+uniform float u_exposure;  // @param 0.01..1000 log Exposure: multiplies the diffracted radiance in every mode (not the 0.02 ambient floor)
 
 out vec4 o_colour;
 

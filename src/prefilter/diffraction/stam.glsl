@@ -20,13 +20,13 @@
 
 const float DF_PI = 3.14159265358979;
 
-uniform sampler2DArray df_terms;
+uniform sampler2DArray df_terms;  // @table the Taylor/FFT terms of the nanostructure patch (Single 2013 §2.4): layer n = 0..df_order holds c_n = fft2((i h)^n / n!)/(W H), h the mean-subtracted height in µm of one W x H patch; texel (x, y) = the DFT bin of frequency (x df_bins.x, y df_bins.y) rad/µm in NumPy FFT order (indices >= W/2 or H/2 are the negative frequencies; the shader wraps bin indices), df_bins = (2π/(W dx), 2π/(H dy), W, H), x across the grooves; RG: (real, imaginary); read with texelFetch (NEAREST, no MIP); not colours
 uniform vec4 df_bins;
 uniform float df_sigma;
 uniform int df_order;
-uniform sampler2D df_spectrum;
+uniform sampler2D df_spectrum;  // @table one row of df_wavelengths texels, wavelengths evenly spaced over 380-780 nm: texel j = (X, Y, Z weight, wavelength in µm), the weights being the CIE 1931 2° colour matching functions times D65, normalised so that a flat reflectance of 1 sums to Y = 1; read with texelFetch (NEAREST, no MIP); not premultiplied
 uniform int df_wavelengths;
-uniform float df_f0;  // Schlick F0 (1: no Fresnel fall-off)
+uniform float df_f0;  // @param 0..1 Fresnel F0: Schlick F0 (1: no Fresnel fall-off); a per-pixel gain in every mode (the fast table does not include it)
 
 // linear sRGB from XYZ (IEC 61966-2-1, D65), column-major
 const mat3 DF_SRGB_FROM_XYZ = mat3(3.2404542, -0.9692660, 0.0556434,
@@ -119,7 +119,7 @@ vec3 df_reflectance(vec3 wi, vec3 wo) {
 
 // The fast path: df_spectralXYZ preintegrated into a 3D table over u, v in [-2, 2] and w in [-2, 0]
 // (texel centres on the grid points; diffraction/fast_table.py), read with one trilinear lookup.
-uniform sampler3D df_table;
+uniform sampler3D df_table;  // @table the fast path's spectrally integrated power over (u, v, w) = k1 - k2 = -wi - wo in the groove tangent frame (+x across the grooves, +y along them, +z the normal): s over u in [-2, 2], t over v in [-2, 2], r (slices) over w in [-2, 0], texel centres on the grid points (texel i at u = -2 + 4 i/(df_tableSize.x - 1), row j at v = -2 + 4 j/(df_tableSize.y - 1), slice k at w = -2 + 2 k/(df_tableSize.z - 1)); RGB: XYZ = Σ_λ |P̃(k u, k v; k w)|² x (D65 x CIE 1931 weight), before the per-pixel gain F G/w² 2 cos²θ1 (linear XYZ, not premultiplied), A = 1; baked for the scene's df_sigma (and df_tiles); LINEAR, CLAMP_TO_EDGE, no MIP
 uniform vec3 df_tableSize;
 
 vec3 df_fastReflectance(vec3 wi, vec3 wo) {

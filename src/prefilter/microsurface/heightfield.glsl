@@ -49,7 +49,7 @@ int ms_steps = 0;          // march steps taken by this fragment (the march-step
 #ifdef MS_TRANSFER
 // h = g(f) with g read from the transfer table (microsurface/transfer.glsl); row σ = 0 is g itself.
 #include "microsurface/transfer.glsl"
-uniform sampler2D u_transferTable;
+uniform sampler2D u_transferTable;  // @table the transfer function's moments (Heitz et al. 2014 §7) with u_transferRange = (mu_lo, mu_hi, sigma_max) in driver units; u: the driver's mean μ over the footprint, (μ - mu_lo)/(mu_hi - mu_lo), texel i at μ = mu_lo + (i + 0.5)(mu_hi - mu_lo)/width (CLAMP_TO_EDGE: the edge columns beyond); v: the driver's standard deviation σ, row j at σ = sigma_max j/(height - 1) (read at v = (σ/sigma_max (height - 1) + 0.5)/height; σ > sigma_max reads the last row); RGBA: (E[g], E[g²], E[g'], E[g'²]) of g under N(μ, σ²), g in driver units (heights are u_transferScale g), row 0 holding (g, g², g', g'²) themselves; LINEAR, no MIP; not colours
 uniform vec3 u_transferRange;
 uniform float u_transferScale;  // h = scale · g(f): g in driver units, h in object units
 uniform vec2 u_transferBound;   // (max |h|, max |dh/df|) over the driver range

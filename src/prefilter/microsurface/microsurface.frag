@@ -44,26 +44,26 @@ uniform vec4 u_eyeObject;  // (eye, 1) for perspective cameras, (direction of vi
 uniform mat4 u_objectFromWorld;
 uniform mat3 u_worldNormalFromObject;
 
-uniform sampler2D u_heightPoint;
-uniform sampler2D u_heightGaussian;
+uniform sampler2D u_heightPoint;  // @table the height colour table C_h for the point and naive modes: u: f = u_heightMap.x (h + u_perturb r) + u_heightMap.y (h the micro height in object units, r the texture fractal) in table periods, n = width entries, entry i covering [i/n, (i+1)/n); read with texelFetch at floor(n fract(f)) for u_heightWrap = 0 (modulo) or min(floor(n clamp(f, 0, 1)), n - 1) for u_heightWrap = 1 (clamp); one row, NEAREST, no MIP; RGBA: the colour table in linear RGB premultiplied by alpha, and alpha
+uniform sampler2D u_heightGaussian;  // @table the preconvolved height colour map C̄_h(μ, σ) for the filtered modes with u_heightRange = (mu_lo, mu_hi, sigma_max); u: μ = u_heightMap.x E[h + u_perturb r] + u_heightMap.y (h the micro height in object units, r the texture fractal), in table periods: u = fract(μ) for u_heightWrap = 0 (modulo: one period, REPEAT, u_heightRange.xy = (0, 1)) or (μ - mu_lo)/(mu_hi - mu_lo) for u_heightWrap = 1 (clamp: CLAMP_TO_EDGE, the edge columns beyond), texel i at μ = mu_lo + (i + 0.5)(mu_hi - mu_lo)/width; v: σ = |u_heightMap.x| x the standard deviation of h + u_perturb r, row j at σ = sigma_max j/(height - 1) (read at v = (σ/sigma_max (height - 1) + 0.5)/height; σ > sigma_max reads the last row; row 0 is the table itself); RGBA: the colour table convolved with N(0, σ²) at μ, in linear RGB premultiplied by alpha, and alpha; LINEAR, no MIP
 uniform vec3 u_heightRange;
 uniform int u_heightWrap;
-uniform vec2 u_heightMap;  // (scale, offset)
-uniform float u_perturb;   // ρ: C(h + ρ r)
-uniform sampler2D u_slopePoint;
-uniform sampler2D u_slopeGaussian;
+uniform vec2 u_heightMap;  // @param -100..100 Height map: (scale, offset), the height colour table's argument f = scale (h + ρ r) + offset with h in object units; every mode follows; for clamp tables the filtered modes are exact while f stays within u_heightRange.xy and |scale| times the deviation stays below u_heightRange.z (the preconvolved bake's range)
+uniform float u_perturb;   // @param -1..1 Perturbation: ρ in C(h + ρ r), the texture fractal r added to the height colour's argument (needs a height colour map and a texture fractal); every mode follows
+uniform sampler2D u_slopePoint;  // @table the slope colour table C_s for the point and naive modes: u: f = u_slopeMap.x (s·d) + u_slopeMap.y (s the micro slope in the macro tangent frame, d = u_slopeDirection) in table periods, n = width entries, entry i covering [i/n, (i+1)/n); read with texelFetch at floor(n fract(f)) for u_slopeWrap = 0 (modulo) or min(floor(n clamp(f, 0, 1)), n - 1) for u_slopeWrap = 1 (clamp); one row, NEAREST, no MIP; RGBA: the colour table in linear RGB premultiplied by alpha, and alpha
+uniform sampler2D u_slopeGaussian;  // @table the preconvolved slope colour map C̄_s(μ, σ) for the filtered modes with u_slopeRange = (mu_lo, mu_hi, sigma_max); u: μ = u_slopeMap.x E[s·d] + u_slopeMap.y (s the micro slope, visible slopes in surface-filter, d = u_slopeDirection), in table periods: u = fract(μ) for u_slopeWrap = 0 (modulo: one period, REPEAT, u_slopeRange.xy = (0, 1)) or (μ - mu_lo)/(mu_hi - mu_lo) for u_slopeWrap = 1 (clamp: CLAMP_TO_EDGE, the edge columns beyond), texel i at μ = mu_lo + (i + 0.5)(mu_hi - mu_lo)/width; v: σ = |u_slopeMap.x| x the standard deviation of s·d, row j at σ = sigma_max j/(height - 1) (read at v = (σ/sigma_max (height - 1) + 0.5)/height; σ > sigma_max reads the last row; row 0 is the table itself); RGBA: the colour table convolved with N(0, σ²) at μ, in linear RGB premultiplied by alpha, and alpha; LINEAR, no MIP
 uniform vec3 u_slopeRange;
 uniform int u_slopeWrap;
-uniform vec2 u_slopeMap;
-uniform vec2 u_slopeDirection;
-uniform sampler2D u_texturePoint;
-uniform sampler2D u_textureGaussian;
+uniform vec2 u_slopeMap;  // @param -4..4 Slope map: (scale, offset), the slope colour table's argument f = scale (s·d) + offset, d = u_slopeDirection; every mode follows; for clamp tables the filtered modes are exact while f stays within u_slopeRange.xy and |scale| times the deviation stays below u_slopeRange.z (the preconvolved bake's range)
+uniform vec2 u_slopeDirection;  // @param -1..1 Slope direction: d in the macro tangent frame (x the tangent, y the bitangent) of the slope colour C_s(s·d); unit in the presets (a longer d scales the argument); every mode follows
+uniform sampler2D u_texturePoint;  // @table the texture colour table C_0 for the point and naive modes: u: f = u_textureMap.x r + u_textureMap.y (r the texture fractal) in table periods, n = width entries, entry i covering [i/n, (i+1)/n); read with texelFetch at floor(n fract(f)) for u_textureWrap = 0 (modulo) or min(floor(n clamp(f, 0, 1)), n - 1) for u_textureWrap = 1 (clamp); one row, NEAREST, no MIP; RGBA: the colour table in linear RGB premultiplied by alpha, and alpha
+uniform sampler2D u_textureGaussian;  // @table the preconvolved texture colour map C̄_0(μ, σ) for the filtered modes with u_textureRange = (mu_lo, mu_hi, sigma_max); u: μ = u_textureMap.x E[r] + u_textureMap.y (r the texture fractal), in table periods: u = fract(μ) for u_textureWrap = 0 (modulo: one period, REPEAT, u_textureRange.xy = (0, 1)) or (μ - mu_lo)/(mu_hi - mu_lo) for u_textureWrap = 1 (clamp: CLAMP_TO_EDGE, the edge columns beyond), texel i at μ = mu_lo + (i + 0.5)(mu_hi - mu_lo)/width; v: σ = |u_textureMap.x| x the standard deviation of the unresolved octaves of r, row j at σ = sigma_max j/(height - 1) (read at v = (σ/sigma_max (height - 1) + 0.5)/height; σ > sigma_max reads the last row; row 0 is the table itself); RGBA: the colour table convolved with N(0, σ²) at μ, in linear RGB premultiplied by alpha, and alpha; LINEAR, no MIP
 uniform vec3 u_textureRange;
 uniform int u_textureWrap;
-uniform vec2 u_textureMap;
-uniform vec3 u_kappa;
+uniform vec2 u_textureMap;  // @param -4..4 Texture map: (scale, offset), the texture colour table's argument f = scale r + offset, r the texture fractal; every mode follows; for clamp tables the filtered modes are exact while f stays within u_textureRange.xy and |scale| times the deviation stays below u_textureRange.z (the preconvolved bake's range)
+uniform vec3 u_kappa;  // @param 0..2 Weights: (κ₀, κ₁, κ₂) of the texture, height and slope colours in κ₀C₀ + κ₁C_h + κ₂C_s (κ₂ unused when the slope layer is over the rest); every mode follows
 uniform int u_slopeOver;
-uniform sampler2D u_heightFilteringTable;
+uniform sampler2D u_heightFilteringTable;  // @table the moments of D_h (Heitz et al. 2014 eqs. 14-17): one row of n = width texels, texel i at t = i/(n - 1) with t = log(1 + L)/log(1 + 10000) (MS_HF_LMAX), L = Λ_o + Λ_i (Smith), read LINEAR at u = (t (n - 1) + 0.5)/n (CLAMP_TO_EDGE: L > 10000 reads the last texel); RG: (μ_d/σ_h, σ_d/σ_h), the mean and standard deviation of the heights that are seen and lit, in units of the height deviation σ_h; no MIP; not colours
 
 out vec4 o_colour;
 

@@ -19,7 +19,7 @@
 #define ND_ANISOTROPY 1
 #endif
 
-uniform sampler2DArray nd_peaks;
+uniform sampler2DArray nd_peaks;  // @table Fournier's pyramid of Phong peaks, every level in one atlas: level l is the texel box nd_level[l] = (x, y, width, height) (level 0 at (0, 0), the others in a column to its right; nd_levelCount levels), and texel (i, j) of level l covers base texels [i 2^l, (i+1) 2^l) x [j 2^l, (j+1) 2^l) of the tiling map, whose repeat is one unit of mesh uv x u_uvScale; layers, with K = nd_maxPeaks: layer k < K holds peak k = (d.x, d.y, amplitude, Phong exponent), d.z = sqrt(1 - d.x² - d.y²), d in the tangent frame (+x along u, +y along v, +z the normal), amplitude 0 = unused, sorted by decreasing amplitude (normal maps: exponents fitted with the base exponent u_exponent at bake time); with shadowing, layer K + k holds that peak's mean horizon slopes (+X, -X, +Y, -Y) and layer 2K + k their standard deviations; nd_levelAlike[l] = 1 where every texel of level l holds the same peaks; read with texelFetch (NEAREST, no MIP); a multiple surface is a 1x1 atlas of its peaks; not colours
 uniform vec4 nd_level[ND_MAX_LEVELS];
 uniform float nd_levelAlike[ND_MAX_LEVELS];  // 1: every texel of the level holds the same peaks
 uniform int nd_levelCount;

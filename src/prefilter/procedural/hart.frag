@@ -20,10 +20,10 @@
 in vec3 v_solid;
 in vec3 v_normal;
 
-uniform sampler2D u_tablePoint;
-uniform sampler2D u_tableMip;
-uniform sampler2D u_tableSat;
-uniform sampler2D u_tableGaussian;
+uniform sampler2D u_tablePoint;  // @table u: the driver value f in table periods, n = width entries (a power of two), entry i covering f in [i/n, (i+1)/n); read with texelFetch at i = floor(n fract(f)) for u_wrap = 0 (modulo) or min(floor(n clamp(f, 0, 1)), n - 1) for u_wrap = 1 (clamp); one row, NEAREST, no MIP; RGBA: the colour table c(f) in linear RGB premultiplied by alpha, and alpha
+uniform sampler2D u_tableMip;  // @table u: the driver value f in table periods, texel i centred at f = (i + 0.5)/n with n = width (REPEAT for u_wrap = 0, modulo; CLAMP_TO_EDGE for u_wrap = 1, clamp); one row; MIP level L: box averages of 2^L entries (Hart §3.3.1), read at lod = log2(filter width in table periods x n); RGBA: the colour table in linear RGB premultiplied by alpha, and alpha
+uniform sampler2D u_tableSat;  // @table one row of n + 3 texels, n the colour table's size: texels 0..n hold the summed-area table S[i] = clut[0] + ... + clut[i-1] (S[0] = 0; sums of the premultiplied linear RGBA entries), texels n+1 and n+2 hold clut[0] and clut[n-1]; read LINEAR at u = (x + 0.5)/(n + 3) for x = n f texels of the driver f, which gives the exact integral of the table over [0, x] (Hart eqs. 13-15); u_wrap: 0 modulo (the table repeats), 1 clamp (the edge entries extend it); no MIP
+uniform sampler2D u_tableGaussian;  // @table the preconvolved colour map C̄(μ, σ) = [clut * N(0, σ²)](μ) of Heitz et al. 2014 eq. 9 with u_gaussianRange = (mu_lo, mu_hi, sigma_max); u: the mean μ of the driver f over the pixel footprint, in table periods: u = fract(μ) for u_wrap = 0 (modulo: one period, REPEAT, u_gaussianRange.xy = (0, 1)) or (μ - mu_lo)/(mu_hi - mu_lo) for u_wrap = 1 (clamp: CLAMP_TO_EDGE, the edge columns beyond), texel i at μ = mu_lo + (i + 0.5)(mu_hi - mu_lo)/width; v: the standard deviation σ of f over the footprint, row j at σ = sigma_max j/(height - 1) (read at v = (σ/sigma_max (height - 1) + 0.5)/height; σ > sigma_max reads the last row; row 0 is the table itself); RGBA: the colour table convolved with N(0, σ²) at μ, in linear RGB premultiplied by alpha, and alpha; LINEAR, no MIP
 uniform vec3 u_gaussianRange;
 uniform int u_wrap;
 uniform float u_quantStep;

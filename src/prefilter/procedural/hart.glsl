@@ -20,7 +20,7 @@
 uniform mat4 pt_quadric;
 uniform mat3 pt_noiseMatrix[PT_ARRAY_SIZE];
 uniform vec3 pt_noiseOffset[PT_ARRAY_SIZE];
-uniform float pt_noiseAmplitude[PT_ARRAY_SIZE];
+uniform float pt_noiseAmplitude[PT_ARRAY_SIZE];  // @param 0..2 Noise amplitude: a_i of noise term i in f(s) = s^T Q s + Σ a_i n(T_i s + o_i) (Hart eq. 1); every mode follows (no baked table depends on it)
 
 float pt_noise(vec3 p) {
 #ifdef PT_REDUCED
