@@ -186,3 +186,61 @@ def test_directories_are_not_listed(server, browser):
             assert response.status == 404, path
     finally:
         page.close()
+
+
+@pytest.mark.parametrize(
+    "scene_name, sampler", [("diffraction-grating-plane", "df_terms"), ("marble-cube", "u_tableMip")]
+)
+def test_the_browser_exr_decoder_reads_exported_tables_exactly(scene_name, sampler, server, browser):
+    """web/exr.js against OpenEXR's writer: a 2-channel layered table and a 4-channel MIP level."""
+    from prefilter.export import capture_scene
+
+    (captured,) = capture_scene(resolve_scene(scene_name))
+    expected = captured.tables[sampler].levels[0]
+    depth, height, width, components = expected.shape
+    page = browser.new_page()
+    try:
+        page.goto(server.split("?")[0])
+        url = f"/bundles/{scene_name}/tables/{captured.directory}/{sampler}.0.exr"
+        result = page.evaluate(
+            """async (url) => {
+                const {decodeExr} = await import('/exr.js');
+                const image = decodeExr(await (await fetch(url)).arrayBuffer());
+                const step = Math.ceil(image.data.length / 20000);
+                const sample = [];
+                let sum = 0;
+                for (let i = 0; i < image.data.length; i++) {
+                    sum += image.data[i];
+                    if (i % step === 0) sample.push(image.data[i]);
+                }
+                return {width: image.width, height: image.height, channels: image.channels,
+                        length: image.data.length, step, sample, sum};
+            }""",
+            url,
+        )
+    finally:
+        page.close()
+    assert (result["width"], result["height"]) == (width, height * depth)
+    assert result["channels"] == list("RGBA"[:components])
+    flat = expected.ravel()
+    assert result["length"] == flat.size
+    np.testing.assert_array_equal(np.asarray(result["sample"], np.float32), flat[:: result["step"]])
+    assert result["sum"] == pytest.approx(float(flat.astype(np.float64).sum()), rel=1e-9, abs=1e-9)
+
+
+def test_view_refuses_a_bad_scene_or_a_busy_port_with_one_line(tmp_path, capsys):
+    import socket
+
+    from prefilter.cli import main
+
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[camera]\nfov = 'wide'\n")
+    assert main(["view", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "bad.toml" in err and err.count("\n") == 1
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        assert main(["view", "--port", str(busy.getsockname()[1])]) == 1
+    err = capsys.readouterr().err
+    assert "cannot listen on 127.0.0.1:" in err and err.count("\n") == 1

@@ -55,13 +55,13 @@ class Bundles:
     """Export bundles of the presets (and of one extra scene file), made on first request, one at a time."""
 
     def __init__(self, extra: str | None):
-        self.root = Path(tempfile.mkdtemp(prefix="prefilter-viewer-"))
         self.sources = {name: name for name in preset_names()}
         self.first: str | None = None
         if extra is not None:
             scene = resolve_scene(extra)  # fails early, with the scene file's own error
             self.sources.setdefault(scene.name, extra)
             self.first = scene.name
+        self.root = Path(tempfile.mkdtemp(prefix="prefilter-viewer-"))
         self.errors: dict[str, str] = {}
         self.gl = ThreadPoolExecutor(max_workers=1, thread_name_prefix="prefilter-gl")
         self.lock = threading.Lock()
