@@ -244,3 +244,28 @@ def test_view_refuses_a_bad_scene_or_a_busy_port_with_one_line(tmp_path, capsys)
         assert main(["view", "--port", str(busy.getsockname()[1])]) == 1
     err = capsys.readouterr().err
     assert "cannot listen on 127.0.0.1:" in err and err.count("\n") == 1
+
+
+def test_view_serves_a_scene_file_given_on_the_command_line(tmp_path):
+    """`prefilter view my.toml` lists the file's scene with the presets and prints its address; a file whose
+    scene is named like a preset (this copy of marble-cube) gets a name of its own."""
+    from prefilter.scene import PRESET_DIR
+
+    scene_file = tmp_path / "my-marble.toml"
+    scene_file.write_text((PRESET_DIR / "marble-cube.toml").read_text())
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "prefilter.cli", "view", str(scene_file)], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        url = proc.stdout.readline().split(": ", 1)[1].strip()
+        assert url.endswith("/?scene=marble-cube-file")
+        base = url.split("?")[0]
+        names = [p["name"] for p in json.loads(urllib.request.urlopen(base + "presets.json").read())]
+        assert "my-marble" in names and "marble-cube" in names
+        manifest = json.loads(
+            urllib.request.urlopen(base + "bundles/my-marble/scene.json", timeout=120).read()
+        )
+        assert manifest["scene"]["name"] == "my-marble"
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)

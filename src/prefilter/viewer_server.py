@@ -59,8 +59,11 @@ class Bundles:
         self.first: str | None = None
         if extra is not None:
             scene = resolve_scene(extra)  # fails early, with the scene file's own error
-            self.sources.setdefault(scene.name, extra)
-            self.first = scene.name
+            name = scene.name
+            while self.sources.get(name, extra) != extra:  # a scene file named like a preset
+                name += "-file"
+            self.sources[name] = extra
+            self.first = name
         self.root = Path(tempfile.mkdtemp(prefix="prefilter-viewer-"))
         self.errors: dict[str, str] = {}
         self.gl = ThreadPoolExecutor(max_workers=1, thread_name_prefix="prefilter-gl")
