@@ -261,11 +261,9 @@ def test_view_serves_a_scene_file_given_on_the_command_line(tmp_path):
         assert url.endswith("/?scene=marble-cube-file")
         base = url.split("?")[0]
         names = [p["name"] for p in json.loads(urllib.request.urlopen(base + "presets.json").read())]
-        assert "my-marble" in names and "marble-cube" in names
-        manifest = json.loads(
-            urllib.request.urlopen(base + "bundles/my-marble/scene.json", timeout=120).read()
-        )
-        assert manifest["scene"]["name"] == "my-marble"
+        assert "marble-cube-file" in names and "marble-cube" in names
+        manifest = urllib.request.urlopen(base + "bundles/marble-cube-file/scene.json", timeout=120).read()
+        assert json.loads(manifest)["scene"]["name"] == "marble-cube"
     finally:
         proc.terminate()
         proc.wait(timeout=10)
