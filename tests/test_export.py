@@ -201,6 +201,10 @@ def test_moving_uniforms_carry_their_end_value(tmp_path):
     uniforms = json.loads((root / "scene.json").read_text())["objects"][0]["uniforms"]
     assert "end" in uniforms["pt_noiseOffset"]
     assert "end" not in uniforms["pt_quadric"]
+    # GLSL types and array lengths for engines without reflection
+    assert uniforms["pt_quadric"]["type"] == "mat4" and uniforms["pt_quadric"]["array"] is None
+    offsets = uniforms["pt_noiseOffset"]
+    assert offsets["type"] == "vec3" and offsets["array"] * 3 == len(offsets["value"]) > 0
 
 
 def test_export_refuses_a_directory_that_is_not_a_bundle(tmp_path, capsys):

@@ -145,6 +145,7 @@ def test_fixed_view_matches_the_moderngl_render(name, server, browser):
         renderer.release()
     viewer = srgb_to_linear(shot / 255.0).astype(np.float32)
     error = float(flip_map(viewer, np.clip(expected, 0.0, 1.0)).mean())
+    print(f"{name} {mode}: FLIP {error:.5f}")
     assert error <= 0.05, f"{name} {mode}: FLIP {error:.4f} > 0.05 between the browser and moderngl"
 
 

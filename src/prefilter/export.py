@@ -55,6 +55,19 @@ _FILTERS = {
     moderngl.LINEAR_MIPMAP_LINEAR: "LINEAR_MIPMAP_LINEAR",
 }
 _INTERNAL = {1: "R32F", 2: "RG32F", 3: "RGB32F", 4: "RGBA32F"}
+GLSL_COMPONENTS = {
+    **{t: 1 for t in ("float", "int", "uint", "bool")},
+    **{f"{p}vec{n}": n for p in ("", "i", "u", "b") for n in (2, 3, 4)},
+    "mat2": 4,
+    "mat3": 9,
+    "mat4": 16,
+}
+REFERENCE = {
+    "mode": "point",
+    "spp": 1024,
+    "pattern": "N x N stratified jittered sub-pixel offsets of the projection (u_jitter), N = sqrt(spp); "
+    "the mean of the passes (box pixel filter)",
+}
 
 
 def file_safe(name: str) -> str:
@@ -232,6 +245,11 @@ def capture_object(
         if name in start.textures:
             continue
         entry = {"value": _flat(value)}
+        u = declarations.get(name)
+        if u is not None:  # the GLSL type, for engines without reflection
+            entry["type"] = u.type
+            size = GLSL_COMPONENTS.get(u.type)
+            entry["array"] = len(entry["value"]) // size if u.array and size else None
         moved = _flat(end.values.get(name, value))
         if moved != entry["value"]:
             entry["end"] = moved
@@ -358,6 +376,7 @@ def manifest(scene: Scene, captured: list[CapturedObject]) -> dict:
             for x in scene.lights
         ],
         "modes": mode_kinds(scene),
+        "reference": REFERENCE,
         "objects": objects,
     }
 
