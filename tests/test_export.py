@@ -150,6 +150,7 @@ def test_exported_shaders_reproduce_the_render(name, tmp_path, fresh_context):
             for target in ("gl330", "es300"):
                 image = draw_bundle(fresh_context, root, mode, target)
                 error = float(flip_map(image, expected).mean())
+                print(f"{name} {mode} {target}: FLIP {error:.6f}")
                 assert error <= 0.01, f"{name} {mode} {target}: FLIP {error:.4f} > 0.01"
     finally:
         renderer.release()

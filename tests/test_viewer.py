@@ -268,3 +268,53 @@ def test_view_serves_a_scene_file_given_on_the_command_line(tmp_path):
     finally:
         proc.terminate()
         proc.wait(timeout=10)
+
+
+def test_every_program_of_every_preset_links_in_the_browser(server, browser):
+    """ANGLE's translator is stricter than Mesa in places: every (object, mode) es300 program of every
+    preset's bundle must compile and link in Chromium's WebGL2."""
+    page = browser.new_page()
+    try:
+        page.goto(server.split("?")[0])
+        failures = page.evaluate(
+            """async (names) => {
+                const gl = document.createElement('canvas').getContext('webgl2');
+                if (!gl) return ['no WebGL2 context'];
+                const failures = [];
+                const compile = (type, source, where) => {
+                    const shader = gl.createShader(type);
+                    gl.shaderSource(shader, source);
+                    gl.compileShader(shader);
+                    if (!gl.getShaderParameter(shader, gl.COMPILE_STATUS))
+                        failures.push(where + ': ' + gl.getShaderInfoLog(shader).split('\\n')[0]);
+                    return shader;
+                };
+                let programs = 0;
+                for (const name of names) {
+                    const base = '/bundles/' + name + '/';
+                    const scene = await (await fetch(base + 'scene.json')).json();
+                    for (const obj of scene.objects) {
+                        for (const [mode, targets] of Object.entries(obj.shaders)) {
+                            const where = name + ' ' + obj.name + ' ' + mode;
+                            const text = async (f) => (await fetch(base + f)).text();
+                            const files = targets.es300;
+                            const program = gl.createProgram();
+                            const vs = await text(files.vertex), fs = await text(files.fragment);
+                            gl.attachShader(program, compile(gl.VERTEX_SHADER, vs, where));
+                            gl.attachShader(program, compile(gl.FRAGMENT_SHADER, fs, where));
+                            gl.linkProgram(program);
+                            const log = gl.getProgramInfoLog(program).split('\\n')[0];
+                            if (!gl.getProgramParameter(program, gl.LINK_STATUS))
+                                failures.push(where + ': link: ' + log);
+                            gl.deleteProgram(program);
+                            programs++;
+                        }
+                    }
+                }
+                return programs > 0 ? failures : ['no programs'];
+            }""",
+            preset_names(),
+        )
+    finally:
+        page.close()
+    assert failures == []
