@@ -318,3 +318,28 @@ def test_every_program_of_every_preset_links_in_the_browser(server, browser):
     finally:
         page.close()
     assert failures == []
+
+
+def test_fallbacks_without_float_targets_and_float_filtering_still_match(server, browser):
+    """With float render targets and float linear filtering treated as missing (?disable=...), the page
+    draws into a 16-bit or 8-bit target and filters tables as 16-bit floats, and still matches moderngl."""
+    missing = "EXT_color_buffer_float,EXT_float_blend,OES_texture_float_linear"
+    page = Page(browser, server + f"?scene=marble-cube&mode=gaussian&fixed=1&disable={missing}")
+    try:
+        target = page.page.evaluate("window.prefilterViewer.extensions.target")
+        shot = page.canvas()
+        assert page.errors == []
+    finally:
+        page.close()
+    assert target in ("RGBA16F", "RGBA8")
+    scene = resolve_scene("marble-cube")
+    renderer = Renderer(scene)
+    try:
+        expected = composite(renderer.render("gaussian"), scene.background)
+    finally:
+        renderer.release()
+    error = float(
+        flip_map(srgb_to_linear(shot / 255.0).astype(np.float32), np.clip(expected, 0.0, 1.0)).mean()
+    )
+    print(f"fallback target {target}: FLIP {error:.5f}")
+    assert error <= 0.05
