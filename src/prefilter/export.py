@@ -21,6 +21,7 @@ import moderngl
 import numpy as np
 
 from prefilter import PrefilterError
+from prefilter.export_readme import bundle_readme
 from prefilter.geometry import VERTEX_LAYOUT
 from prefilter.gl.annotations import (
     Uniform,
@@ -409,8 +410,6 @@ def export_scene(scene: Scene, out: Path, options: RenderOptions | None = None) 
 
     An existing `out` is replaced only if it is an export bundle (has a scene.json of this format).
     """
-    from prefilter.export_readme import bundle_readme
-
     out = Path(out)
     if out.exists():
         marker = out / "scene.json"

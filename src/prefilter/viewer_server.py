@@ -9,6 +9,7 @@ a 404. GL work (bakes, read-backs) runs on one worker thread, which owns the pro
 
 from __future__ import annotations
 
+import functools
 import json
 import shutil
 import sys
@@ -69,7 +70,9 @@ class Bundles:
         self.gl = ThreadPoolExecutor(max_workers=1, thread_name_prefix="prefilter-gl")
         self.lock = threading.Lock()
 
+    @functools.cached_property
     def listing(self) -> list[dict]:
+        """Name, description and tags of every scene (parsed once: bundles are made once too)."""
         out = []
         for name, source in self.sources.items():
             try:
@@ -140,7 +143,7 @@ class ViewerHandler(SimpleHTTPRequestHandler):
         if path in ("", "/"):
             return self._file(inside(WEB_ROOT, "index.html"), head)
         if path == "/presets.json":
-            listing = json.dumps(self.bundles.listing()).encode()
+            listing = json.dumps(self.bundles.listing).encode()
             return self._send(HTTPStatus.OK, listing, CONTENT_TYPES[".json"], head)
         if path.startswith("/bundles/"):
             name, _, rest = path[len("/bundles/") :].partition("/")
