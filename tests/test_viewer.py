@@ -126,12 +126,15 @@ def test_switching_modes_changes_the_image(server, browser):
         page.close()
 
 
-@pytest.mark.parametrize("name", sorted(FIXED_VIEWS))
+@pytest.mark.parametrize("name", sorted(FIXED_VIEWS) + ["zone-plate", "seascape@0.5"])
 def test_fixed_view_matches_the_moderngl_render(name, server, browser):
-    mode = FIXED_VIEWS[name]
+    """Also an orthographic camera (zone-plate) and the middle of a camera flight (seascape at t = 0.5)."""
+    name, _, when = name.partition("@")
+    t = float(when or 0.0)
+    mode = FIXED_VIEWS.get(name, "gaussian")
     scene = resolve_scene(name)
     w, h = scene.size
-    page = Page(browser, server + f"?scene={name}&mode={mode}&fixed=1")
+    page = Page(browser, server + f"?scene={name}&mode={mode}&fixed=1&t={t}")
     try:
         shot = page.canvas()
         assert page.errors == []
@@ -140,12 +143,15 @@ def test_fixed_view_matches_the_moderngl_render(name, server, browser):
     assert shot.shape == (h, w, 3), f"canvas is {shot.shape[1]}x{shot.shape[0]}, scene is {w}x{h}"
     renderer = Renderer(scene)
     try:
-        expected = composite(renderer.render(mode), scene.background)
+        expected = composite(renderer.render(mode, t), scene.background)
+        start = composite(renderer.render(mode, 0.0), scene.background)
     finally:
         renderer.release()
     viewer = srgb_to_linear(shot / 255.0).astype(np.float32)
     error = float(flip_map(viewer, np.clip(expected, 0.0, 1.0)).mean())
-    print(f"{name} {mode}: FLIP {error:.5f}")
+    print(f"{name} {mode} t={t}: FLIP {error:.5f}")
+    if t:  # the flight moved the view: the start of it would not match
+        assert float(flip_map(viewer, np.clip(start, 0.0, 1.0)).mean()) > 3 * error
     assert error <= 0.05, f"{name} {mode}: FLIP {error:.4f} > 0.05 between the browser and moderngl"
 
 
