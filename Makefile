@@ -26,6 +26,7 @@ $(STAMP): pyproject.toml
 demo: setup
 	$(VENV)/bin/prefilter compare wood-teapot -o out/wood-teapot
 	$(VENV)/bin/prefilter compare noise-plane -o out/noise-plane
+	@echo "Every preset in the browser: $(VENV)/bin/prefilter view   (export for engines: prefilter export SCENE -o DIR)"
 
 # Debian's Chromium for the viewer's browser tests (Playwright drives it; it downloads no browser).
 .cache/chromium-ok: scripts/ensure-chromium.sh
