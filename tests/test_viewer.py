@@ -349,3 +349,22 @@ def test_fallbacks_without_float_targets_and_float_filtering_still_match(server,
     )
     print(f"fallback target {target}: FLIP {error:.5f}")
     assert error <= 0.05
+
+
+def test_a_table_beyond_the_device_limits_is_refused_with_its_name(server, browser):
+    page = browser.new_page()
+    try:
+        page.goto(server.split("?")[0])
+        message = page.evaluate(
+            """async () => {
+                const {createTable, detectExtensions} = await import('/gl-resources.js');
+                const gl = document.createElement('canvas').getContext('webgl2');
+                const meta = {sampler: 'u_huge', kind: '2d', width: 1 << 20, height: 1, depth: 1,
+                              components: 4, levels: [], filter: {min: 'LINEAR', mag: 'LINEAR'}};
+                try { createTable(gl, detectExtensions(gl), meta, []); return 'accepted'; }
+                catch (e) { return e.message; }
+            }"""
+        )
+    finally:
+        page.close()
+    assert message.startswith("table u_huge: width and height 1048576x1") and "MAX_TEXTURE_SIZE" in message

@@ -79,6 +79,21 @@ function glEnum(gl, name, what) {
   return value;
 }
 
+/** Throws, naming the table and the limit, when this device cannot hold the table. */
+function checkLimits(gl, meta) {
+  const limits =
+    meta.kind === '3d'
+      ? [['width, height and depth', [meta.width, meta.height, meta.depth], 'MAX_3D_TEXTURE_SIZE']]
+      : [['width and height', [meta.width, meta.height], 'MAX_TEXTURE_SIZE']];
+  if (meta.kind === '2d_array') limits.push(['layers', [meta.depth], 'MAX_ARRAY_TEXTURE_LAYERS']);
+  for (const [what, values, name] of limits) {
+    const limit = gl.getParameter(gl[name]);
+    if (Math.max(...values) > limit) {
+      throw new Error(`table ${meta.sampler}: ${what} ${values.join('x')} exceed this device's ${name} = ${limit}`);
+    }
+  }
+}
+
 /**
  * A texture from a table's JSON and its decoded EXR levels (decodeExr results, level 0 first).
  * Returns {texture, target, halfFloat} — halfFloat when a LINEAR* table had to be uploaded as 16F
@@ -90,6 +105,7 @@ export function createTable(gl, caps, meta, levels) {
   const target = gl[targetName];
   const c = meta.components;
   if (!(c >= 1 && c <= 4)) throw new Error(`table ${meta.sampler}: components must be 1..4, got ${c}`);
+  checkLimits(gl, meta);
   const linear = [meta.filter.min, meta.filter.mag].some((f) => f.startsWith('LINEAR') || f.endsWith('MIPMAP_LINEAR'));
   const halfFloat = linear && !caps.ext.textureFloatLinear;
   const internal = gl[(halfFloat ? INTERNAL16 : INTERNAL32)[c - 1]];
