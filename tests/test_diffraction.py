@@ -298,3 +298,17 @@ def test_accurate_path_matches_the_direct_slice_reference_at_the_presets_window(
     shader = shader_reflectances(material, wi, wo, ("point",))["point"]
     direct = direct_reflectance(s.heights, s.pixel[0], material.coherence, material.f0, wi, wo, 5.0)
     assert np.abs(shader - direct).max() <= 1e-2 * direct.max()
+
+
+def test_compare_adds_brdf_slices_against_the_direct_reference_for_gratings(tmp_path):
+    from prefilter.compare import compare_scene, write_comparison
+
+    scene = _scene(
+        'coherence_um = 3.0\nfast_table = [64, 64, 16]\n[object.material.generator]\nname = "blazed"'
+    )
+    out = write_comparison(compare_scene(scene, spp=4, frames=1, time_reference=False), tmp_path / "cmp")
+    report = (out / "report.md").read_text()
+    assert (out / "brdf-slices.png").stat().st_size > 10_000
+    assert "## BRDF slices against the direct reference" in report
+    rows = [line for line in report.splitlines() if line.startswith("| 30° | point |")]
+    assert len(rows) == 1 and float(rows[0].split("|")[3]) > 0.0

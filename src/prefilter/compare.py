@@ -157,6 +157,10 @@ def write_comparison(comparison: Comparison, out_dir: str | os.PathLike) -> Path
             "![FLIP maps](flip.png)",
             "",
         ]
+        for material in {id(obj.material): obj.material for obj in comparison.scene.objects}.values():
+            extras = getattr(material, "comparison_figures", None)  # technique-specific studies
+            if extras is not None:
+                md += extras(staging)
         (staging / "report.md").write_text("\n".join(md))
         umask = os.umask(0)
         os.umask(umask)

@@ -119,3 +119,86 @@ def shader_reflectances(
         }
     finally:
         material.release(resources)
+
+
+SLICE_ANGLES = (0.0, 30.0, 60.0)  # θ_i of the slices that `prefilter compare` draws
+
+
+def slice_study(material, angles=SLICE_ANGLES, step_nm: float = 1.0) -> dict | None:
+    """Every shader path against the direct reference along in-plane slices; None for 2D structures.
+
+    Errors per mode: the largest |difference| over the slice relative to the reference's peak, and the
+    mean ΔE2000 over θ_o where the reference is brighter than 1 % of its peak (colours scaled by the peak).
+    """
+    from prefilter.metrics import delta_e2000_map
+
+    s = material.structure
+    try:
+        grating_profile(s.heights)
+    except PrefilterError:
+        return None
+    study: dict = {"angles": list(angles), "step_nm": step_nm, "slices": []}
+    for theta_i in angles:
+        wi, wo, theta_o = in_plane_slice(theta_i)
+        reference = direct_reflectance(
+            s.heights, s.pixel[0], material.coherence, material.f0, wi, wo, step_nm
+        )
+        peak = float(reference.max())
+        bright = reference @ np.array([0.2126, 0.7152, 0.0722]) > 0.01 * peak
+        entry = {"theta_i": theta_i, "theta_o": theta_o, "reference": reference, "modes": {}, "errors": {}}
+        for mode, value in shader_reflectances(material, wi, wo).items():
+            delta_e = delta_e2000_map((value / peak)[None], (reference / peak)[None])[0]
+            entry["modes"][mode] = value
+            entry["errors"][mode] = {
+                "max_relative": float(np.abs(value - reference).max() / peak),
+                "mean_delta_e": float(delta_e[bright].mean()) if bright.any() else 0.0,
+            }
+        study["slices"].append(entry)
+    return study
+
+
+def write_slice_figure(study: dict, path) -> None:
+    """Luminance along each slice (log scale), the reference in black, and each path's colours in a strip."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from prefilter.images import linear_to_srgb
+
+    luminance = np.array([0.2126, 0.7152, 0.0722])
+    slices = study["slices"]
+    fig, axes = plt.subplots(
+        2, len(slices), figsize=(5.2 * len(slices), 6.2), height_ratios=[3, 1], squeeze=False
+    )
+    for column, entry in enumerate(slices):
+        ax, strip = axes[0, column], axes[1, column]
+        theta_o, reference = entry["theta_o"], entry["reference"]
+        peak = reference.max()
+        ax.semilogy(
+            theta_o,
+            np.maximum(reference @ luminance, 1e-6),
+            "k",
+            lw=2.2,
+            label=f"direct ({study['step_nm']:g} nm)",
+        )
+        for mode, value in entry["modes"].items():
+            err = entry["errors"][mode]
+            label = f"{mode}: max {err['max_relative']:.3f}, ΔE {err['mean_delta_e']:.1f}"
+            ax.semilogy(theta_o, np.maximum(value @ luminance, 1e-6), lw=1.1, label=label)
+        ax.set_ylim(max(float((reference @ luminance).max()) * 1e-4, 1e-7), None)
+        ax.set_title(f"θ_i = {entry['theta_i']:g}°")
+        ax.set_xlabel("θ_o (degrees, across the grooves)")
+        ax.legend(fontsize=7)
+        rows = [reference] + list(entry["modes"].values())
+        image = np.stack([np.repeat(r[None] / peak, 8, axis=0) for r in rows]).reshape(-1, len(theta_o), 3)
+        strip.imshow(
+            linear_to_srgb(np.clip(image, 0, 1)),
+            aspect="auto",
+            extent=(theta_o[0], theta_o[-1], len(rows), 0),
+        )
+        strip.set_yticks(np.arange(len(rows)) + 0.5, ["direct", *entry["modes"]])
+    axes[0, 0].set_ylabel("relative reflectance (luminance)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
