@@ -54,7 +54,7 @@ def test_glsl_taylor_transform_equals_the_bake():
         uniforms=uniforms,
         textures=textures,
     )
-    expected = terms.evaluate(k * u, k * v, k * w, nearest=True)  # the shader reads the 2 x 2 nearest bins
+    expected = terms.evaluate(k * u, k * v, k * w, stencil=1)  # the shader reads the 2 x 2 nearest bins
     np.testing.assert_allclose(got[:, 0] + 1j * got[:, 1], expected, atol=2e-4)
     for t in textures.values():
         t.release()
@@ -115,7 +115,7 @@ def test_glsl_reflectance_of_a_grating_equals_stams_formula_summed_over_the_spec
     xyz = np.zeros((len(wo), 3))
     for lam, wt in zip(wavelengths, weights, strict=True):
         k = 2 * np.pi / lam
-        p = terms.evaluate(k * uvw[:, 0], k * uvw[:, 1], k * uvw[:, 2], nearest=True)
+        p = terms.evaluate(k * uvw[:, 0], k * uvw[:, 1], k * uvw[:, 2], stencil=1)
         xyz += np.abs(p)[:, None] ** 2 * wt
     expected = np.maximum(xyz_to_srgb(gain[:, None] * xyz), 0.0)
     assert expected.max() > 0.01
@@ -265,7 +265,7 @@ def test_direct_slice_reference_equals_the_full_window_taylor_sum():
     xyz = np.zeros((len(wi), 3))
     for lam, weight in zip(wavelengths, weights, strict=True):
         k = 2 * np.pi / lam
-        p = terms.evaluate(k * uvw[:, 0], k * uvw[:, 1], k * uvw[:, 2], nearest=False)
+        p = terms.evaluate(k * uvw[:, 0], k * uvw[:, 1], k * uvw[:, 2], stencil=None)
         xyz += np.abs(p)[:, None] ** 2 * weight
     taylor = np.maximum(xyz_to_srgb(gain[:, None] * xyz), 0.0)
     direct = direct_reflectance(s.heights, s.pixel[0], material.coherence, material.f0, wi, wo, 10.0)
@@ -286,13 +286,14 @@ def test_accurate_path_matches_the_direct_slice_reference_at_the_default_window(
         assert np.abs(shader - direct).max() <= 1e-3 * direct.max(), theta_i
 
 
-@pytest.mark.xfail(strict=True, reason="known defect: the 2 x 2 bin stencil truncates the window at σ ≤ 4 µm")
-def test_accurate_path_matches_the_direct_slice_reference_at_the_presets_window():
-    """σ = 4 µm (the grating preset): the window's neighbours one bin away weigh 0.6, and the shader reads
-    only the 2 x 2 nearest bins; measured 15 % of the peak at θ_i = 30° (36 % at σ = 2.5 µm)."""
+@pytest.mark.parametrize("sigma", [4.0, 2.5])
+def test_accurate_path_matches_the_direct_slice_reference_at_the_presets_windows(sigma):
+    """σ = 4 and 2.5 µm (the presets' windows): the window's neighbours one bin away weigh 0.6 and more, so
+    the shader's stencil grows with 1 / (σ Δ); the 2 x 2 nearest bins alone were 15 % and 36 % off."""
     from prefilter.diffraction.slices import direct_reflectance, in_plane_slice, shader_reflectances
 
-    material = _grating_material(4.0)
+    material = _grating_material(sigma)
+    assert material.stencil() > 1
     s = material.structure
     wi, wo, _ = in_plane_slice(30.0, 713)
     shader = shader_reflectances(material, wi, wo, ("point",))["point"]

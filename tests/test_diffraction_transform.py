@@ -215,7 +215,7 @@ def test_nearest_bins_match_a_hand_sum_and_the_full_window_when_it_is_narrow():
         for lx in (3, 4):
             c = sum(kw**n * terms.coefficients[n, m % 8, lx] for n in range(terms.order + 1))
             total += c * np.exp(-0.5 * 16 * ((alpha - lx * da) ** 2 + (beta - m * db) ** 2))
-    assert terms.evaluate(alpha, beta, kw, nearest=True) == pytest.approx(total, abs=1e-13)
+    assert terms.evaluate(alpha, beta, kw, stencil=1) == pytest.approx(total, abs=1e-13)
     wide = taylor_terms(h, (0.05, 0.08), sigma=100.0)  # σ Δ ≫ 6: the 2 x 2 bins carry the whole window
     a, b = rng.uniform(-30, 30, (2, 100))
-    np.testing.assert_allclose(wide.evaluate(a, b, kw, nearest=True), wide.evaluate(a, b, kw), atol=1e-12)
+    np.testing.assert_allclose(wide.evaluate(a, b, kw, stencil=1), wide.evaluate(a, b, kw), atol=1e-12)

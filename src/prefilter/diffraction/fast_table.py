@@ -8,56 +8,71 @@ integrated power itself, a function of (u, v, w) alone, tabulated on a 3D grid �
 w in [-2, 0], texel centres on the grid points — and read with one trilinear lookup. The wavelength-
 independent gain (Fresnel, G / w², 2 cos²θ1) is applied per pixel (stam.glsl `df_fastReflectance`).
 
-The table is baked on the GPU by the accurate path's own GLSL (`df_spectralXYZ`), one w-slice per pass,
-and cached by content. Its resolution bounds the narrowest lobe it can hold: lobes are about 1 / (k σ)
-wide in u and v, so σ up to a few µm (the presets) needs 256 samples per axis; σ = 16 µm would need
-thousands, and the accurate path is then the one to use.
+The bake needs no Taylor series: for each wavelength and w-slice, k w is one number, so the Fourier-series
+coefficients of exp(i k w h) over the patch are one FFT, C = fft2(exp(i k w h_c)) / (H W) (the sum of
+Single's terms, without their truncation). The windowed transform on the table's (u, v) grid is then
+separable Gaussian gridding, P̃ = G_v C G_u^T with G[a, l] = exp(−σ² (k u_a − α_l)² / 2) over the bins
+within reach of the visible range: every bin of the window, not the shader's stencil. With tiles
+(Single §2.7) the power is the nearest bin's |C|² times the periodic factor, as in stam.glsl.
+
+Its resolution bounds the narrowest lobe it can hold: lobes are about 1 / (k σ) wide in u and v, so σ up
+to a few µm (the presets) needs 256 samples per axis; σ = 16 µm would need thousands, and the accurate
+path is then the one to use.
 """
 
 from __future__ import annotations
 
-import numpy as np
+import math
 
-from prefilter.gl.program import build_program
-from prefilter.gl.render import FULLSCREEN_TRIANGLE_VERT
-from prefilter.gl.uniforms import bind_samplers, set_uniforms
+import numpy as np
+import scipy.fft
+
+from prefilter.diffraction.spectrum import spectral_weights
+from prefilter.diffraction.transform import WINDOW_RADIUS, periodic_factor
 
 DEFAULT_SIZE = (256, 256, 32)  # u, v, w samples
 
-_FRAG = """
-#include "diffraction/stam.glsl"
-uniform vec3 u_tableSize;
-uniform float u_slice;
-out vec4 o_xyz;
-void main() {
-    vec3 grid = vec3(floor(gl_FragCoord.xy), u_slice) / (u_tableSize - 1.0);
-    vec3 uvw = vec3(-2.0, -2.0, -2.0) + grid * vec3(4.0, 4.0, 2.0);
-    o_xyz = vec4(df_spectralXYZ(uvw), 1.0);
-}
-"""
 
-
-def bake_fast_table(ctx, textures: dict, uniforms: dict, size=DEFAULT_SIZE) -> np.ndarray:
+def bake_fast_table(
+    heights: np.ndarray,
+    pixel: tuple[float, float],
+    sigma: float,
+    step_nm: float,
+    size=DEFAULT_SIZE,
+    tiles: tuple[int, int] | None = None,
+) -> np.ndarray:
     """(w samples, v samples, u samples, 4) float32: XYZ (and 1) of the spectrally integrated power."""
     nu, nv, nw = size
-    prog = build_program(ctx, FULLSCREEN_TRIANGLE_VERT, _FRAG, target="gl330")
-    vao = ctx.vertex_array(prog, [])
-    target = ctx.texture((nu, nv), 4, dtype="f4")
-    fbo = ctx.framebuffer([target])
-    out = np.empty((nw, nv, nu, 4), np.float32)
-    try:
-        bind_samplers(prog, textures)
-        set_uniforms(prog, {**uniforms, "u_tableSize": (float(nu), float(nv), float(nw))})
-        fbo.use()
-        ctx.viewport = (0, 0, nu, nv)
-        ctx.disable(ctx.BLEND | ctx.DEPTH_TEST)
-        for k in range(nw):
-            prog["u_slice"].value = float(k)
-            vao.render(vertices=3)
-            out[k] = np.frombuffer(target.read(), np.float32).reshape(nv, nu, 4)
-    finally:
-        fbo.release()
-        target.release()
-        vao.release()
-        prog.release()
-    return out
+    h = np.asarray(heights, np.float64)
+    h = (h - h.mean()).astype(np.float32)
+    rows, cols = h.shape
+    dx, dy = pixel
+    alpha_bins = 2.0 * math.pi * np.fft.fftfreq(cols, dx)
+    beta_bins = 2.0 * math.pi * np.fft.fftfreq(rows, dy)
+    u, v, w = np.linspace(-2.0, 2.0, nu), np.linspace(-2.0, 2.0, nv), np.linspace(-2.0, 0.0, nw)
+    out = np.zeros((nw, nv, nu, 3))
+    wavelengths, weights = spectral_weights(step_nm)
+    for lam, weight in zip(wavelengths, weights, strict=True):
+        k = 2.0 * math.pi / lam
+        alpha, beta = k * u, k * v
+        if tiles is None:
+            reach = 2.0 * k + WINDOW_RADIUS / sigma
+            sx = np.nonzero(np.abs(alpha_bins) <= reach)[0]
+            sy = np.nonzero(np.abs(beta_bins) <= reach)[0]
+            gu = np.exp(-0.5 * (sigma * (alpha[:, None] - alpha_bins[sx])) ** 2).astype(np.complex64)
+            gv = np.exp(-0.5 * (sigma * (beta[:, None] - beta_bins[sy])) ** 2).astype(np.complex64)
+        else:
+            lx = np.floor(alpha / (2.0 * math.pi / (cols * dx)) + 0.5).astype(np.int64) % cols
+            ly = np.floor(beta / (2.0 * math.pi / (rows * dy)) + 0.5).astype(np.int64) % rows
+            factor = np.outer(  # normalised by N² per axis: a flat mirror stays 1
+                periodic_factor(beta, rows * dy, tiles[1]) / tiles[1] ** 2,
+                periodic_factor(alpha, cols * dx, tiles[0]) / tiles[0] ** 2,
+            )
+        for j, wj in enumerate(w):
+            c = scipy.fft.fft2(np.exp(1j * np.float32(k * wj) * h), workers=-1) / (rows * cols)
+            if tiles is None:
+                power = np.abs(gv @ c[np.ix_(sy, sx)] @ gu.T) ** 2
+            else:
+                power = np.abs(c[np.ix_(ly, lx)]) ** 2 * factor
+            out[j] += power[..., None] * weight
+    return np.concatenate([out, np.ones(out.shape[:-1] + (1,))], axis=-1).astype(np.float32)

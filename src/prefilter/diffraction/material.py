@@ -72,8 +72,27 @@ class DiffractionMaterial:
     def shader_sources(self) -> tuple[Path, Path]:
         return PACKAGE_ROOT / "glsl/common/tangent_frame.vert", SHADER_DIR / "diffraction.frag"
 
+    def stencil(self) -> int:
+        """R of the shader's 2R x 2R bin stencil for this window and patch (transform.stencil_radius)."""
+        from prefilter.diffraction.transform import stencil_radius
+
+        h, w = self.structure.heights.shape
+        dx, dy = self.structure.pixel
+        return stencil_radius(self.coherence, (2 * math.pi / (w * dx), 2 * math.pi / (h * dy)))
+
+    def horner_macro(self) -> str:
+        """DF_HORNER(bin, kw) for stam.glsl: the Taylor sum at one bin, unrolled to this structure's order."""
+        order = int(self.terms()["order"][0])
+        expression = f"df_term(bin, {order})"
+        for n in range(order - 1, -1, -1):
+            expression = f"({expression} * (kw) + df_term(bin, {n}))"
+        return expression
+
     def defines(self, options) -> dict[str, object]:
-        defines: dict[str, object] = {}
+        defines: dict[str, object] = {
+            "DF_STENCIL": self.stencil(),
+            "DF_HORNER(bin, kw)": self.horner_macro(),
+        }
         if self.circular:
             defines["DF_CIRCULAR"] = True
         if self.tiles is not None:
@@ -118,29 +137,32 @@ class DiffractionMaterial:
             "df_tiles": tuple(float(n) for n in (self.tiles or (1, 1))),
         }
         textures = {"df_terms": table, "df_spectrum": spectrum_tex}
-        textures["df_table"] = self.fast_table(ctx, textures, uniforms)
+        textures["df_table"] = self.fast_table(ctx)
         uniforms["df_tableSize"] = tuple(float(n) for n in self.table_size)
         return {"textures": textures, "uniforms": uniforms}
 
-    def fast_table(self, ctx: moderngl.Context, textures: dict, uniforms: dict) -> moderngl.Texture:
-        """The fast path's 3D table (diffraction/fast_table.py), baked on the GPU and cached by content."""
+    def fast_table(self, ctx: moderngl.Context) -> moderngl.Texture:
+        """The fast path's 3D table (diffraction/fast_table.py), baked by FFTs and cached by content."""
         from prefilter.diffraction.fast_table import bake_fast_table
 
         s = self.structure
         params = {
             "pixel": list(s.pixel),
             "sigma": self.coherence,
-            "epsilon": self.epsilon,
             "step": self.spectral_step,
             "size": list(self.table_size),
             "tiles": list(self.tiles) if self.tiles else None,
-            "version": 1,
+            "version": 2,  # 2: every bin of the window, no Taylor truncation (1: the shader's 2 x 2 bins)
         }
         data = cached_arrays(
             "df-fast",
             params,
             (s.heights,),
-            lambda: {"xyz": bake_fast_table(ctx, textures, uniforms, self.table_size)},
+            lambda: {
+                "xyz": bake_fast_table(
+                    s.heights, s.pixel, self.coherence, self.spectral_step, self.table_size, self.tiles
+                )
+            },
         )["xyz"]
         nu, nv, nw = self.table_size
         table = ctx.texture3d((nu, nv, nw), 4, np.ascontiguousarray(data, np.float32).tobytes(), dtype="f4")

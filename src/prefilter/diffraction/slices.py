@@ -111,6 +111,7 @@ def shader_reflectances(
                 {"wi": wi, "wo": wo},
                 3,
                 includes=("diffraction/stam.glsl",),
+                defines=material.defines(None),
                 uniforms=resources["uniforms"],
                 textures=resources["textures"],
             )

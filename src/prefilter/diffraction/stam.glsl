@@ -12,7 +12,9 @@
 //
 // P̃ is the Taylor sum of Single §2.4: Σ_n (k w)^n Σ_bins c_n[bin] exp(-σ² |(α, β) - bin|² / 2), with c_n
 // the Fourier-series coefficients of (i h)^n / n! (mean-subtracted h): the complex terms are summed first
-// (by Horner's rule in k w), then squared. The 2 x 2 DFT bins nearest (α, β) carry the window.
+// (by Horner's rule in k w), then squared. The window is carried by the 2R x 2R DFT bins around the cell
+// that holds (α, β), R = DF_STENCIL (transform.py `stencil_radius`: R σ Δ ≥ 2.5; R = 1, the 2 x 2 nearest
+// bins, when the window is narrow next to the bin spacing Δ, as at the default σ).
 //
 // df_terms: RG32F texture array, layer n = c_n in NumPy FFT order; df_bins = (2π / (W dx), 2π / (H dy),
 // W, H); df_sigma (µm); df_order N. df_spectrum: RGBA32F, texel j = (XYZ weight, wavelength µm) with the
@@ -40,19 +42,37 @@ vec2 df_term(ivec2 bin, int n) {
     return texelFetch(df_terms, ivec3(wrapped, n), 0).xy;
 }
 
+#ifndef DF_STENCIL
+#define DF_STENCIL 1
+#endif
+
+// Σ_n (k w)^n c_n[bin] by Horner's rule. llvmpipe stops a shader invocation's loops after 65535 iterations
+// in all (counted over its SIMD group, every loop together) without an error, which a loop over the terms
+// inside the stencil and the spectral loops exceeds. So the material defines DF_HORNER(bin, kw), the same
+// sum unrolled for its structure's order (material.py `horner_macro`); the loop is the fallback.
+vec2 df_termSum(ivec2 bin, float kw) {
+#ifdef DF_HORNER
+    return DF_HORNER(bin, kw);
+#else
+    vec2 acc = df_term(bin, df_order);
+    for (int n = df_order - 1; n >= 0; --n) acc = acc * kw + df_term(bin, n);
+    return acc;
+#endif
+}
+
 // P̃(α, β; k w): complex (re, im).
 vec2 df_transform(float alpha, float beta, float kw) {
     vec2 at = vec2(alpha, beta) / df_bins.xy;
     ivec2 b0 = ivec2(floor(at));
     vec2 sum = vec2(0.0);
-    for (int c = 0; c < 4; ++c) {
-        ivec2 bin = b0 + ivec2(c % 2, c / 2);
-        vec2 d = (vec2(bin) - at) * df_bins.xy;
-        float g = exp(-0.5 * df_sigma * df_sigma * dot(d, d));
-        if (g < 1e-7) continue;
-        vec2 acc = df_term(bin, df_order);
-        for (int n = df_order - 1; n >= 0; --n) acc = acc * kw + df_term(bin, n);  // Horner in k w
-        sum += g * acc;
+    for (int j = 1 - DF_STENCIL; j <= DF_STENCIL; ++j) {
+        for (int i = 1 - DF_STENCIL; i <= DF_STENCIL; ++i) {
+            ivec2 bin = b0 + ivec2(i, j);
+            vec2 d = (vec2(bin) - at) * df_bins.xy;
+            float g = exp(-0.5 * df_sigma * df_sigma * dot(d, d));
+            if (g < 1e-7) continue;
+            sum += g * df_termSum(bin, kw);
+        }
     }
     return sum;
 }
@@ -86,8 +106,7 @@ float df_periodicFactor(float phase, float count) {
 float df_tiledPower(float alpha, float beta, float kw) {
     vec2 at = vec2(alpha, beta) / df_bins.xy;
     ivec2 bin = ivec2(floor(at + 0.5));
-    vec2 acc = df_term(bin, df_order);
-    for (int n = df_order - 1; n >= 0; --n) acc = acc * kw + df_term(bin, n);
+    vec2 acc = df_termSum(bin, kw);
     return dot(acc, acc) * df_periodicFactor(2.0 * DF_PI * at.x, df_tiles.x) *
            df_periodicFactor(2.0 * DF_PI * at.y, df_tiles.y);
 }
