@@ -177,7 +177,8 @@ def test_coarse_height_fields_are_rejected(tmp_path):
         _scene(text)
 
 
-def test_fast_path_agrees_with_the_accurate_path_within_delta_e_1():
+@pytest.mark.parametrize("mode", ["fast", "dhillon"])
+def test_fast_paths_agree_with_the_accurate_path_within_delta_e_1(mode):
     from prefilter.gl.render import composite, coverage_mask
     from prefilter.metrics import compare
 
@@ -188,11 +189,11 @@ def test_fast_path_agrees_with_the_accurate_path_within_delta_e_1():
     )
     renderer = Renderer(scene)
     try:
-        rgba = {mode: renderer.render(mode) for mode in ("point", "fast")}
+        rgba = {m: renderer.render(m) for m in ("point", mode)}
     finally:
         renderer.release()
     mask = coverage_mask(rgba["point"])
-    point, fast = (composite(rgba[m], scene.background) for m in ("point", "fast"))
+    point, fast = (composite(rgba[m], scene.background) for m in ("point", mode))
     assert point.max() > 0.05  # the orders are in view
     scores = compare(fast, point, mask)
     assert scores["delta_e"] <= 1.0, scores
@@ -313,3 +314,97 @@ def test_compare_adds_brdf_slices_against_the_direct_reference_for_gratings(tmp_
     assert "## BRDF slices against the direct reference" in report
     rows = [line for line in report.splitlines() if line.startswith("| 30° | point |")]
     assert len(rows) == 1 and float(rows[0].split("|")[3]) > 0.0
+
+
+# -- Dhillon et al. 2014's 2N + 1 tables (diffraction/dhillon.py) ---------------------------------------
+
+
+def _in_plane(u: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(ω_i, ω_o) in the plane across the grooves with k̂1 − k̂2 = (u, 0, w): −u = 2 sin s cos d and
+    −w = 2 cos s cos d, θ_i = s + d, θ_o = s − d."""
+    s = np.arctan2(-u, -w)
+    d = np.arccos(np.hypot(u, w) / 2.0)  # |(u, w)| < 2
+    ti, to = s + d, s - d
+    zeros = np.zeros_like(u)
+    wi = np.stack([np.sin(ti), zeros, np.cos(ti)], axis=1)
+    wo = np.stack([np.sin(to), zeros, np.cos(to)], axis=1)
+    return wi, wo
+
+
+@pytest.mark.parametrize("w0", [0.0, -1.0])
+def test_dhillon_tables_equal_the_direct_windowed_power_at_their_grid_points(w0):
+    """Σ_j (w − w₀)^j T_j at the tables' (u, v = 0) nodes against the direct Riemann sum of e^{ikwh} under the
+    window (slices.direct_power: no Taylor series, no DFT bins), at w from grazing to normal incidence."""
+    from prefilter.diffraction.dhillon import bake_dhillon_tables
+    from prefilter.diffraction.slices import direct_power
+
+    material = _grating_material(4.0)
+    s = material.structure
+    tables = bake_dhillon_tables(s.heights, s.pixel, 4.0, 10.0, (65, 65), w0=w0)[..., :3].astype(np.float64)
+    u_nodes = np.linspace(-2.0, 2.0, 65)
+    columns = np.nonzero(np.abs(u_nodes) <= 1.2)[0]
+    for w in (-1.9, -1.5, -1.0, -0.6):
+        x = w - w0
+        horner = np.zeros((len(columns), 3))
+        for j in range(tables.shape[0] - 1, -1, -1):
+            horner = horner * x + tables[j, 32, columns]
+        uvw = np.stack([u_nodes[columns], np.zeros(len(columns)), np.full(len(columns), w)], axis=1)
+        direct = direct_power(s.heights, s.pixel[0], 4.0, uvw, 10.0)
+        assert direct.max() > 0.05
+        np.testing.assert_allclose(horner, direct, atol=2e-5 * direct.max(), err_msg=f"w = {w}")
+
+
+def test_glsl_dhillon_path_equals_its_tables_and_the_direct_reflectance():
+    """The shader's Horner sum over hardware-bilinear lookups equals the same sum over NumPy-interpolated
+    tables in float64 (the float32 cancellation stays small), and at the grid nodes the direct reference."""
+    import dataclasses
+
+    from prefilter.diffraction.slices import direct_reflectance
+
+    material = dataclasses.replace(_grating_material(4.0), table_size=(65, 65, 9))
+    s = material.structure
+    resources = material.upload(gl_context(), None)
+    try:
+        rng = np.random.default_rng(3)
+        w = rng.uniform(-1.95, -0.5, 400)
+        u = rng.uniform(-1.0, 1.0, 400) * np.sqrt(3.9 - w**2)
+        wi, wo = _in_plane(u, w)
+        keep = (wi[:, 2] > 0.1) & (wo[:, 2] > 0.1)  # both above the surface, not grazing
+        u, w = u[keep][:40], w[keep][:40]
+        u = np.concatenate([np.linspace(-2.0, 2.0, 65)[13:52:3], u])  # 13 nodes, then 40 between them
+        w = np.concatenate([np.full(13, -1.5), w])
+        wi, wo = _in_plane(u, w)
+        wo[13:, 1] = rng.uniform(-0.05, 0.05, len(u) - 13)  # off the plane: v between the nodes
+        wo /= np.linalg.norm(wo, axis=1, keepdims=True)
+        shader = glsl_eval(
+            "df_dhillonReflectance(wi, wo)",
+            {"wi": wi, "wo": wo},
+            3,
+            includes=INCLUDES,
+            defines=material.defines(None),
+            uniforms=resources["uniforms"],
+            textures=resources["textures"],
+        )
+    finally:
+        material.release(resources)
+    from prefilter.diffraction.dhillon import bake_dhillon_tables
+    from prefilter.diffraction.slices import stam_geometry
+
+    tables = bake_dhillon_tables(s.heights, s.pixel, 4.0, material.spectral_step, (65, 65))[..., :3]
+    uvw, gain = stam_geometry(wi, wo, material.f0)
+    fx, fy = (uvw[:, 0] + 2.0) / 4.0 * 64, (uvw[:, 1] + 2.0) / 4.0 * 64
+    x0, y0 = np.floor(fx).astype(int), np.floor(fy).astype(int)
+    ax, ay = (fx - x0)[:, None], (fy - y0)[:, None]
+    xyz = np.zeros((len(u), 3))
+    for j in range(tables.shape[0] - 1, -1, -1):
+        t = tables[j].astype(np.float64)
+        lerp = (1 - ay) * ((1 - ax) * t[y0, x0] + ax * t[y0, x0 + 1]) + ay * (
+            (1 - ax) * t[y0 + 1, x0] + ax * t[y0 + 1, x0 + 1]
+        )
+        xyz = xyz * (uvw[:, 2] + 1.0)[:, None] + lerp
+    numpy = np.maximum(xyz_to_srgb(gain[:, None] * xyz), 0.0)
+    peak = numpy.max()
+    assert peak > 0.1
+    np.testing.assert_allclose(shader, numpy, atol=2e-3 * peak)
+    direct = direct_reflectance(s.heights, s.pixel[0], 4.0, material.f0, wi[:13], wo[:13], 5.0)
+    np.testing.assert_allclose(shader[:13], direct, atol=1e-3 * direct.max())

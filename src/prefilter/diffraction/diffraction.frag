@@ -2,6 +2,7 @@
 //   MODE_POINT        the accurate path at the pixel centre: Taylor/FFT transform, spectral loop over
 //                     380-780 nm (each pass of the reference)
 //   MODE_FAST         the wavelength-preintegrated table: one trilinear lookup (diffraction/fast_table.py)
+//   MODE_DHILLON      Dhillon et al. 2014's 2N + 1 tables of cross terms, by powers of w (diffraction/dhillon.py)
 //   MODE_NAIVE        Stam's analytic grating shader (GPU Gems style) with the structure's period
 //   MODE_BLINN_PHONG  diagnostic: a Blinn-Phong highlight on the same mesh (the timing yardstick)
 // DF_CIRCULAR: grooves follow circles around df_centre in uv (a CD); otherwise they run at df_angle
@@ -44,6 +45,8 @@ void main() {
         colour += sh_lightColour[i] * df_reflectance(wi, wo);
 #elif defined(MODE_FAST)
         colour += sh_lightColour[i] * df_fastReflectance(wi, wo);
+#elif defined(MODE_DHILLON)
+        colour += sh_lightColour[i] * df_dhillonReflectance(wi, wo);
 #elif defined(MODE_NAIVE)
         colour += sh_lightColour[i] * df_analyticGrating(wi, wo, df_period);
 #elif defined(MODE_BLINN_PHONG)

@@ -1,11 +1,11 @@
 """The wavelength-preintegrated fast path: XYZ(u, v, w) = Σ_λ |P̃(k u, k v; k w)|² x (D65 x CIE 1931).
 
 Dhillon et al. 2014 take the wavelength loop out of the pixel shader by integrating the |Σ|² cross terms
-of the Taylor series over 380-780 nm into 2N + 1 tables over (u, v), combined per pixel by powers of w.
-Those products of large terms cancel down to |P̃|² ≤ 1 (for the snake ridges, terms of 1e4 and more), which
-float32 tables cannot carry. We preintegrate the same quantity one step later instead: the spectrally
-integrated power itself, a function of (u, v, w) alone, tabulated on a 3D grid — u, v in [-2, 2],
-w in [-2, 0], texel centres on the grid points — and read with one trilinear lookup. The wavelength-
+of the Taylor series over 380-780 nm into 2N + 1 tables over (u, v), combined per pixel by powers of w
+(mode `dhillon`, diffraction/dhillon.py). This module preintegrates the same quantity one step later: the
+spectrally integrated power itself, a function of (u, v, w) alone, tabulated on a 3D grid — u, v in
+[-2, 2], w in [-2, 0], texel centres on the grid points, odd counts so that the specular direction u = v = 0
+is a node — and read with one trilinear lookup instead of Dhillon's 2N + 1 (mode `fast`). The wavelength-
 independent gain (Fresnel, G / w², 2 cos²θ1) is applied per pixel (stam.glsl `df_fastReflectance`).
 
 The bake needs no Taylor series: for each wavelength and w-slice, k w is one number, so the Fourier-series
@@ -15,9 +15,9 @@ separable Gaussian gridding, P̃ = G_v C G_u^T with G[a, l] = exp(−σ² (k u_a
 within reach of the visible range: every bin of the window, not the shader's stencil. With tiles
 (Single §2.7) the power is the nearest bin's |C|² times the periodic factor, as in stam.glsl.
 
-Its resolution bounds the narrowest lobe it can hold: lobes are about 1 / (k σ) wide in u and v, so σ up
-to a few µm (the presets) needs 256 samples per axis; σ = 16 µm would need thousands, and the accurate
-path is then the one to use.
+Its resolution bounds the narrowest lobe it can hold (so does Dhillon's, on the same u, v grid): lobes are
+about 1 / (k σ) wide in u and v, so σ up to a few µm (the presets) needs 257 samples per axis; σ = 16 µm
+would need thousands, and the accurate path is then the one to use.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ import scipy.fft
 from prefilter.diffraction.spectrum import spectral_weights
 from prefilter.diffraction.transform import WINDOW_RADIUS, periodic_factor
 
-DEFAULT_SIZE = (256, 256, 32)  # u, v, w samples
+DEFAULT_SIZE = (257, 257, 33)  # u, v, w samples: odd, so u = 0, v = 0 and w = -1 are grid points
 
 
 def bake_fast_table(

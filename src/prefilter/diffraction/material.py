@@ -6,12 +6,14 @@
     coherence_um = 16.25 (σ of the Gaussian window)   spectral_step_nm = 5   f0 = 1 (Schlick)
     epsilon = 1e-7 (Taylor truncation)   exposure = 1
     tiles = [Nx, Ny]: Single §2.7's periodic factor for Nx x Ny copies of the patch instead of the window
+    dhillon_w0 = -1: the centre of the `dhillon` mode's expansion in w (0 is Dhillon et al.'s own)
 
 Modes: `point` is the accurate path (diffraction/stam.glsl: Taylor/FFT transform, spectral loop), the
 reference supersamples it; `fast` reads the spectrally preintegrated 3D table (diffraction/fast_table.py,
-`fast_table = [256, 256, 32]` samples of u, v, w); `naive` is Stam's analytic grating shader with the
-structure's dominant period; `blinn-phong` is the timing yardstick. The Taylor terms
-(diffraction/transform.py) and the table are baked once and cached by content.
+`fast_table = [257, 257, 33]` samples of u, v, w); `dhillon` sums Dhillon et al. 2014's 2N + 1 tables of
+spectrally integrated cross terms by powers of w (diffraction/dhillon.py, on the same u, v grid); `naive`
+is Stam's analytic grating shader with the structure's dominant period; `blinn-phong` is the timing
+yardstick. The Taylor terms (diffraction/transform.py) and the tables are baked once and cached by content.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import numpy as np
 
 from prefilter import PrefilterError
 from prefilter.bake_cache import cached_arrays
+from prefilter.diffraction.fast_table import DEFAULT_SIZE
 from prefilter.diffraction.nanostructure import GENERATORS, Nanostructure, read_heightfield
 from prefilter.diffraction.spectrum import spectral_weights
 from prefilter.gl.uniforms import bind_samplers, set_uniforms
@@ -55,13 +58,14 @@ class DiffractionMaterial:
     f0: float
     epsilon: float
     exposure: float
-    table_size: tuple[int, int, int] = (256, 256, 32)  # the fast path's u, v, w samples
+    table_size: tuple[int, int, int] = DEFAULT_SIZE  # the fast paths' u, v, w samples (fast_table.py)
     tiles: tuple[int, int] | None = None  # Single §2.7: the patch repeated (Nx, Ny) times, no window
+    dhillon_w0: float = -1.0  # the `dhillon` mode's expansion centre in w (Dhillon et al.: 0)
 
     kind = "diffraction"
 
     def modes(self) -> tuple[str, ...]:
-        return ("fast",)
+        return ("fast",) if self.tiles else ("fast", "dhillon")  # the tables are of the window, not tiles
 
     def diagnostic_modes(self) -> tuple[str, ...]:
         return ("blinn-phong",)
@@ -139,6 +143,10 @@ class DiffractionMaterial:
         textures = {"df_terms": table, "df_spectrum": spectrum_tex}
         textures["df_table"] = self.fast_table(ctx)
         uniforms["df_tableSize"] = tuple(float(n) for n in self.table_size)
+        if self.tiles is None:
+            textures["df_dhillon"] = self.dhillon_tables(ctx)
+            uniforms["df_dhillonCount"] = textures["df_dhillon"].size[2]
+            uniforms["df_dhillonW0"] = self.dhillon_w0
         return {"textures": textures, "uniforms": uniforms}
 
     def fast_table(self, ctx: moderngl.Context) -> moderngl.Texture:
@@ -168,6 +176,45 @@ class DiffractionMaterial:
         table = ctx.texture3d((nu, nv, nw), 4, np.ascontiguousarray(data, np.float32).tobytes(), dtype="f4")
         table.filter = (moderngl.LINEAR, moderngl.LINEAR)
         table.repeat_x = table.repeat_y = table.repeat_z = False
+        return table
+
+    def dhillon_tables(self, ctx: moderngl.Context) -> moderngl.TextureArray:
+        """The `dhillon` mode's 2N + 1 XYZ tables over (u, v) (diffraction/dhillon.py), cached by content."""
+        from prefilter.diffraction.dhillon import bake_dhillon_tables
+
+        s = self.structure
+        size = self.table_size[:2]
+        params = {
+            "pixel": list(s.pixel),
+            "sigma": self.coherence,
+            "step": self.spectral_step,
+            "size": list(size),
+            "w0": self.dhillon_w0,
+            "epsilon": self.epsilon,
+            "version": 1,
+        }
+        data = cached_arrays(
+            "df-dhillon",
+            params,
+            (s.heights,),
+            lambda: {
+                "xyz": bake_dhillon_tables(
+                    s.heights,
+                    s.pixel,
+                    self.coherence,
+                    self.spectral_step,
+                    size,
+                    self.dhillon_w0,
+                    self.epsilon,
+                )
+            },
+        )["xyz"]
+        count = data.shape[0]
+        table = ctx.texture_array(
+            (*size, count), 4, np.ascontiguousarray(data, np.float32).tobytes(), dtype="f4"
+        )
+        table.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        table.repeat_x = table.repeat_y = False
         return table
 
     def comparison_figures(self, out_dir: Path) -> list[str]:
@@ -234,8 +281,9 @@ def parse_diffraction(r: Reader, base_dir: Path) -> DiffractionMaterial:
         f0=r.number("f0", 1.0, lo=0.0, hi=1.0),
         epsilon=r.number("epsilon", 1e-7, lo=1e-12, hi=0.1),
         exposure=r.number("exposure", 1.0, lo=0.0),
-        table_size=tuple(int(n) for n in r.vector("fast_table", 3, default=[256, 256, 32])),
+        table_size=tuple(int(n) for n in r.vector("fast_table", 3, default=list(DEFAULT_SIZE))),
         tiles=_tiles(r),
+        dhillon_w0=r.number("dhillon_w0", -1.0, lo=-2.0, hi=0.0),
     )
 
 

@@ -27,6 +27,7 @@ WINDOW_SIGMAS = 6.0  # e^{-18}: the window's weight beyond is below 1e-7 of its 
 SHADER_PATHS = {
     "point": "df_reflectance(wi, wo)",
     "fast": "df_fastReflectance(wi, wo)",
+    "dhillon": "df_dhillonReflectance(wi, wo)",
     "naive": "df_analyticGrating(wi, wo, {period:.9g})",
 }
 
@@ -61,6 +62,29 @@ def grating_profile(heights: np.ndarray) -> np.ndarray:
     return heights[0]
 
 
+def direct_power(
+    heights: np.ndarray, dx: float, sigma: float, uvw: np.ndarray, step_nm: float = 1.0
+) -> np.ndarray:
+    """XYZ of Σ_λ |P̃(k u, k v; k w)|² x weight(λ) per (u, v, w) row, from the direct windowed transform."""
+    profile = grating_profile(heights)
+    profile = profile - profile.mean()
+    reach = int(math.ceil(WINDOW_SIGMAS * sigma / dx))
+    j = np.arange(-reach, reach + 1)
+    x = j * dx
+    h = profile[j % profile.size]
+    window = dx / (math.sqrt(2.0 * math.pi) * sigma) * np.exp(-(x**2) / (2.0 * sigma**2))
+    uvw = np.asarray(uvw, np.float64)
+    xyz = np.zeros((len(uvw), 3))
+    wavelengths, weights = spectral_weights(step_nm)
+    for lam, weight in zip(wavelengths, weights, strict=True):
+        k = 2.0 * math.pi / lam
+        alpha, beta, kw = k * uvw[:, 0], k * uvw[:, 1], k * uvw[:, 2]
+        phase = kw[:, None] * h[None, :] - alpha[:, None] * x[None, :]
+        p = (window[None, :] * np.exp(1j * phase)).sum(axis=1) * np.exp(-0.5 * (sigma * beta) ** 2)
+        xyz += (np.abs(p) ** 2)[:, None] * weight
+    return xyz
+
+
 def direct_reflectance(
     heights: np.ndarray,
     dx: float,
@@ -71,22 +95,8 @@ def direct_reflectance(
     step_nm: float = 1.0,
 ) -> np.ndarray:
     """Linear sRGB relative reflectance along the slice, from the direct windowed transform (header)."""
-    profile = grating_profile(heights)
-    profile = profile - profile.mean()
-    reach = int(math.ceil(WINDOW_SIGMAS * sigma / dx))
-    j = np.arange(-reach, reach + 1)
-    x = j * dx
-    h = profile[j % profile.size]
-    window = dx / (math.sqrt(2.0 * math.pi) * sigma) * np.exp(-(x**2) / (2.0 * sigma**2))
     uvw, gain = stam_geometry(wi, wo, f0)
-    xyz = np.zeros((len(wi), 3))
-    wavelengths, weights = spectral_weights(step_nm)
-    for lam, weight in zip(wavelengths, weights, strict=True):
-        k = 2.0 * math.pi / lam
-        alpha, beta, kw = k * uvw[:, 0], k * uvw[:, 1], k * uvw[:, 2]
-        phase = kw[:, None] * h[None, :] - alpha[:, None] * x[None, :]
-        p = (window[None, :] * np.exp(1j * phase)).sum(axis=1) * np.exp(-0.5 * (sigma * beta) ** 2)
-        xyz += (np.abs(p) ** 2)[:, None] * weight
+    xyz = direct_power(heights, dx, sigma, uvw, step_nm)
     return np.maximum(xyz_to_srgb(gain[:, None] * xyz), 0.0)
 
 
@@ -100,7 +110,7 @@ def shader_reflectances(
     from prefilter.gl.context import gl_context
     from prefilter.gl.evaluate import glsl_eval
 
-    if "fast" not in modes:  # no need to bake the fast path's table
+    if "fast" not in modes and "dhillon" not in modes:  # no need to bake the fast paths' tables
         material = replace(material, table_size=(2, 2, 2))
     resources = material.upload(gl_context(), None)
     try:

@@ -150,6 +150,24 @@ vec3 df_fastReflectance(vec3 wi, vec3 wo) {
     return max(DF_SRGB_FROM_XYZ * (geometry.w * xyz), vec3(0.0));
 }
 
+// Dhillon et al. 2014's fast path: the spectrally integrated power as a polynomial in w, Σ_j (w − w₀)^j T_j(u, v),
+// with 2N + 1 XYZ tables T_j of the Taylor series' cross terms (diffraction/dhillon.py), summed by Horner's
+// rule: one bilinear lookup per table and no wavelength loop.
+uniform sampler2DArray df_dhillon;  // @table Dhillon et al. 2014's wavelength-preintegrated cross terms of the Taylor series (diffraction/dhillon.py): layer j = 0..df_dhillonCount-1 holds T_j(u, v) with Σ_λ |P̃(k u, k v; k w)|² x (D65 x CIE 1931 weight) = Σ_j (w - df_dhillonW0)^j T_j(u, v), (u, v, w) = k1 - k2 = -wi - wo in the groove tangent frame (+x across the grooves, +y along them, +z the normal); s over u in [-2, 2], t over v in [-2, 2], texel centres on the grid points (texel i at u = -2 + 4 i/(width - 1)); RGB: T_j in XYZ before the per-pixel gain F G/w² 2 cos²θ1 (signed, float32: the sum cancels, do not store at lower precision), A = 0; baked for the scene's df_sigma; LINEAR, CLAMP_TO_EDGE, no MIP
+uniform int df_dhillonCount;  // 2N + 1
+uniform float df_dhillonW0;  // the expansion's centre w₀ (Dhillon: 0; ours by default: -1, the middle of w's range)
+
+vec3 df_dhillonReflectance(vec3 wi, vec3 wo) {
+    if (wi.z <= 0.0 || wo.z <= 0.0) return vec3(0.0);
+    vec4 geometry = df_geometry(wi, wo);
+    vec2 size = vec2(textureSize(df_dhillon, 0).xy);
+    vec2 coord = ((geometry.xy + 2.0) / 4.0 * (size - 1.0) + 0.5) / size;
+    float x = geometry.z - df_dhillonW0;
+    vec3 xyz = vec3(0.0);
+    for (int j = df_dhillonCount - 1; j >= 0; --j) xyz = xyz * x + texture(df_dhillon, vec3(coord, float(j))).xyz;
+    return max(DF_SRGB_FROM_XYZ * (geometry.w * xyz), vec3(0.0));
+}
+
 // Baseline: Stam's analytic grating shader (GPU Gems ch. 8 style) for a grating of period d (µm): order
 // m lights the wavelength λ = d |u| / |m| within 380-780 nm, every order taken 10 % efficient and spread
 // along y by the coherence window; the zeroth order is a white mirror lobe. No height field is used.

@@ -1,0 +1,99 @@
+"""Dhillon et al. 2014's wavelength-preintegrated tables: the |Σ|² cross terms of the Taylor series,
+integrated over 380-780 nm, as 2N + 1 XYZ tables over (u, v) combined per pixel by powers of w.
+
+Expand about w₀ (Dhillon's own expansion is w₀ = 0):
+    exp(i k w h) = exp(i k w₀ h) Σ_n (k (w − w₀))ⁿ (i h)ⁿ / n!,
+so the windowed transform is P̃(w) = Σ_n (w − w₀)ⁿ a_n, a_n(u, v; λ) = kⁿ P̃[exp(i k w₀ h)(i h)ⁿ / n!](k u, k v)
+(mean-subtracted h; the Gaussian window as in transform.py). Its power is a polynomial of degree 2N in w:
+
+    |P̃|² = Σ_j (w − w₀)^j Σ_{n+m=j} a_n conj(a_m),     T_j(u, v) = Σ_λ weight(λ) Σ_{n+m=j} Re(a_n conj(a_m)),
+
+T_j in XYZ (weight = D65 x CIE 1931, spectrum.py). The pixel then needs no wavelength loop: one Horner sum
+Σ_j (w − w₀)^j T_j(u, v) over 2N + 1 bilinear lookups (stam.glsl `df_dhillonReflectance`).
+
+The catch is precision. The terms of that sum reach about exp(2 k_max |w − w₀| max|h|) (the Taylor terms'
+own bound, squared) and cancel down to |P̃|² ≤ 1, while the tables and the shader's sum are float32. With
+w₀ = 0 (|w| ≤ 2) that is ~3e3 for the blazed grating but ~2e7 for the snake ridges, past float32's 7 digits.
+Expanding about the middle of the w range, w₀ = −1, halves the exponent (~4e3 for the snakes) and the order
+N. docs/diffraction.md measures both against the accurate path.
+
+The bake: per wavelength, N + 1 FFTs (one set for all wavelengths when w₀ = 0: Single's terms), the window
+gridded onto the tables' (u, v) grid over every bin in reach (separable Gaussians, as in fast_table.py), and
+the cross terms summed product by product in float64.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.fft
+
+from prefilter.diffraction.spectrum import spectral_weights
+from prefilter.diffraction.transform import WINDOW_RADIUS, _order_for
+
+W_RANGE = (-2.0, 0.0)  # w = −(cos θ1 + cos θ2) on the upper hemisphere
+
+
+def dhillon_order(height_range_um: float, w0: float, epsilon: float, lambda_min_um: float = 0.38) -> int:
+    """N for the expansion about w₀: truncation ≤ ε for |w − w₀| up to the farther end of W_RANGE."""
+    reach = max(abs(W_RANGE[0] - w0), abs(W_RANGE[1] - w0))
+    return _order_for(2.0 * math.pi / lambda_min_um * reach * height_range_um, epsilon)
+
+
+def bake_dhillon_tables(
+    heights: np.ndarray,
+    pixel: tuple[float, float],
+    sigma: float,
+    step_nm: float,
+    size: tuple[int, int] = (257, 257),
+    w0: float = -1.0,
+    epsilon: float = 1e-7,
+) -> np.ndarray:
+    """(2N + 1, v samples, u samples, 4) float32: T_j in XYZ (A = 0), u and v on linspace(−2, 2, size)."""
+    nu, nv = size
+    h = np.asarray(heights, np.float64)
+    h = h - h.mean()
+    rows, cols = h.shape
+    order = dhillon_order(float(np.abs(h).max()), w0, epsilon)
+    dx, dy = pixel
+    alpha_bins = 2.0 * math.pi * np.fft.fftfreq(cols, dx)
+    beta_bins = 2.0 * math.pi * np.fft.fftfreq(rows, dy)
+    u, v = np.linspace(-2.0, 2.0, nu), np.linspace(-2.0, 2.0, nv)
+    length = 2 * order + 1
+    tables = np.zeros((length, nv, nu, 3))
+    powers = np.empty((order + 1, rows, cols), np.complex128)  # (i h)^n / n!
+    powers[0] = 1.0
+    for n in range(1, order + 1):
+        powers[n] = powers[n - 1] * (1j * h) / n
+    shared = None
+    if w0 == 0.0:  # exp(i k w0 h) = 1: the same coefficients for every wavelength
+        shared = scipy.fft.fft2(powers, axes=(1, 2), workers=-1) / (rows * cols)
+    wavelengths, weights = spectral_weights(step_nm)
+    for lam, weight in zip(wavelengths, weights, strict=True):
+        k = 2.0 * math.pi / lam
+        reach = 2.0 * k + WINDOW_RADIUS / sigma
+        sx = np.nonzero(np.abs(alpha_bins) <= reach)[0]
+        sy = np.nonzero(np.abs(beta_bins) <= reach)[0]
+        gu = np.exp(-0.5 * (sigma * (k * u[:, None] - alpha_bins[sx])) ** 2)
+        gv = np.exp(-0.5 * (sigma * (k * v[:, None] - beta_bins[sy])) ** 2)
+        if shared is None:
+            phase = np.exp(1j * k * w0 * h)  # (complex64 would be slower: high powers of small h go denormal)
+            coefficients = scipy.fft.fft2(powers * phase, axes=(1, 2), workers=-1) / (rows * cols)
+        else:
+            coefficients = shared
+        window = coefficients[:, sy][:, :, sx]  # (N + 1, Sy, Sx)
+        a = gv @ window @ gu.T  # (N + 1, nv, nu): the windowed transform of each term
+        a *= (k ** np.arange(order + 1))[:, None, None]
+        # Σ_{n+m=j} Re(a_n conj(a_m)) for j = 0..2N, product by product: each T_j keeps its own relative
+        # accuracy (an FFT product would leave a floor of 1e-16 max|a|² that (w − w₀)^2N multiplies)
+        cross = np.zeros((length, nv, nu))
+        re, im = np.ascontiguousarray(a.real), np.ascontiguousarray(a.imag)
+        for n in range(order + 1):
+            products = re[n] * re[n:] + im[n] * im[n:]  # m = n..N
+            products[1:] *= 2.0  # (n, m) and (m, n)
+            cross[2 * n : n + order + 1] += products
+        tables += cross[..., None] * weight
+    out = np.zeros(tables.shape[:-1] + (4,), np.float32)
+    out[..., :3] = tables
+    return out
