@@ -138,10 +138,13 @@ def bench_preset(scene: Scene, size, spp: int, frames: int) -> dict:
         )
     if DIFFRACTION_TAG in scene.tags:
         entry["diffraction_timing"] = timing = diffraction_timing(scene, size, frames)
-        checks["fast_time_le_10_blinn_phong"] = timing["fast_vs_blinn_phong"] <= 10.0
-        fast_vs_point = compare(result.images["fast"], result.images["point"], result.mask)
-        entry["fast_delta_e_vs_accurate"] = float(fast_vs_point["delta_e"])
-        checks["fast_delta_e_le_1_accurate"] = entry["fast_delta_e_vs_accurate"] <= 1.0
+        for mode in ("fast", "dhillon"):  # the two wavelength-preintegrated paths
+            if mode not in result.images:
+                continue
+            checks[f"{mode}_time_le_10_blinn_phong"] = timing[f"{mode}_vs_blinn_phong"] <= 10.0
+            versus = compare(result.images[mode], result.images["point"], result.mask)
+            entry[f"{mode}_delta_e_vs_accurate"] = float(versus["delta_e"])
+            checks[f"{mode}_delta_e_le_1_accurate"] = entry[f"{mode}_delta_e_vs_accurate"] <= 1.0
     entry["checks"] = checks
     return entry
 
@@ -162,34 +165,52 @@ def time_ratios(
 
 
 def diffraction_timing(scene: Scene, size, frames: int) -> dict:
-    """The accurate (`point`) and fast paths and Stam's analytic shader (`naive`) as ratios to Blinn-Phong."""
+    """The accurate (`point`) and fast paths (`fast`, `dhillon`) and Stam's analytic shader (`naive`) as
+    ratios to Blinn-Phong."""
     modes = {
         "accurate_vs_blinn_phong": "point",
         "fast_vs_blinn_phong": "fast",
         "analytic_vs_blinn_phong": "naive",
     }
+    if "dhillon" in scene_modes(scene):
+        modes["dhillon_vs_blinn_phong"] = "dhillon"
     return time_ratios(scene, size, frames, "blinn-phong", modes)
 
 
 def diffraction_bake_study(sizes=DIFFRACTION_BAKE_SIZES) -> dict:
-    """Bake time and table memory of the Taylor terms of Xenopeltis-like height fields (0.05 µm pixels)."""
+    """Bake time and table memory of Xenopeltis-like height fields (0.05 µm pixels, default window): the
+    Taylor terms (accurate path, RG32F), the fast path's 3D table and Dhillon's 2N + 1 tables (RGBA32F)."""
     import time
 
+    from prefilter.diffraction.dhillon import bake_dhillon_tables
+    from prefilter.diffraction.fast_table import DEFAULT_SIZE, bake_fast_table
     from prefilter.diffraction.nanostructure import generate
-    from prefilter.diffraction.transform import taylor_terms
+    from prefilter.diffraction.transform import DEFAULT_SIGMA, taylor_terms
+
+    def timed(bake):
+        start = time.perf_counter()
+        result = bake()
+        return result, time.perf_counter() - start
 
     out = {}
     for n in sizes:
-        structure = generate("xenopeltis", size=n * 0.05, pixel=0.05)
-        start = time.perf_counter()
-        terms = taylor_terms(structure.heights, structure.pixel)
-        seconds = time.perf_counter() - start
+        s = generate("xenopeltis", size=n * 0.05, pixel=0.05)
+        terms, seconds = timed(lambda s=s: taylor_terms(s.heights, s.pixel))
+        fast, fast_seconds = timed(lambda s=s: bake_fast_table(s.heights, s.pixel, DEFAULT_SIGMA, 5.0))
+        dhillon, dhillon_seconds = timed(
+            lambda s=s: bake_dhillon_tables(s.heights, s.pixel, DEFAULT_SIGMA, 5.0, DEFAULT_SIZE[:2])
+        )
         out[f"{n}x{n}"] = {
             "seconds": seconds,
             "terms": terms.order + 1,
             "texture_mb": terms.coefficients.size * 8 / 2**20,  # RG32F on the GPU
+            "fast_table_seconds": fast_seconds,
+            "fast_table_mb": fast.nbytes / 2**20,
+            "dhillon_seconds": dhillon_seconds,
+            "dhillon_tables": dhillon.shape[0],
+            "dhillon_mb": dhillon.nbytes / 2**20,
         }
-        del terms
+        del terms, fast, dhillon
     return out
 
 
@@ -580,7 +601,7 @@ def run_bench(
             resolve_scene(TRADEOFF_PRESET), size, spp, frames
         )
     if any(DIFFRACTION_TAG in s.tags for s in scenes):
-        studies["diffraction_bake"] = diffraction_bake_study()
+        studies["diffraction_bake"] = diffraction_bake_study((256,) if quick else DIFFRACTION_BAKE_SIZES)
     if any(FOURNIER_TAG in s.tags for s in scenes):
         studies["pyramid_build"] = build = pyramid_build_study()
         for name, report in build.items():
