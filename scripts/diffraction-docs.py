@@ -1,5 +1,6 @@
 """Figures and tables of docs/diffraction.md: the grating-equation plot, the blazed grating's order
-efficiencies against sinc², and the preset images (`prefilter compare`, 16 samples per pixel).
+efficiencies against sinc², and the preset images and BRDF slices against the direct reference
+(`prefilter compare`, 16 samples per pixel).
 
 Usage: .venv/bin/python scripts/diffraction-docs.py   (writes docs/images/diffraction/, prints the table)
 """
@@ -70,6 +71,8 @@ def preset_images() -> None:
             check=True,
         )
         (OUT / f"{preset}.png").write_bytes((out / "strip.png").read_bytes())
+        slices = preset.removeprefix("diffraction-").removesuffix("-plane").removesuffix("-cylinder")
+        (OUT / f"brdf-slices-{slices}.png").write_bytes((out / "brdf-slices.png").read_bytes())
 
 
 if __name__ == "__main__":

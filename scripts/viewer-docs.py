@@ -22,7 +22,9 @@ SHOTS = {
 
 def main() -> None:
     OUT.mkdir(parents=True, exist_ok=True)
-    server = subprocess.Popen([sys.executable, "-m", "prefilter.cli", "view"], stdout=subprocess.PIPE, text=True)
+    server = subprocess.Popen(
+        [sys.executable, "-m", "prefilter.cli", "view"], stdout=subprocess.PIPE, text=True
+    )
     try:
         url = server.stdout.readline().split(": ", 1)[1].strip()
         with sync_playwright() as p:
@@ -30,7 +32,9 @@ def main() -> None:
             page = browser.new_page(viewport={"width": 1400, "height": 860})
             for name, query in SHOTS.items():
                 page.goto(url + query)
-                page.wait_for_function("() => window.prefilterViewer && window.prefilterViewer.ready", timeout=180_000)
+                page.wait_for_function(
+                    "() => window.prefilterViewer && window.prefilterViewer.ready", timeout=180_000
+                )
                 time.sleep(2)  # a few frames, so the frame time is shown
                 page.screenshot(path=str(OUT / f"{name}.png"))
                 print(OUT / f"{name}.png")

@@ -1,5 +1,6 @@
 """Diffraction at run time: the GLSL transform and reflectance against the NumPy bake and closed forms."""
 
+import dataclasses
 import math
 
 import moderngl
@@ -300,6 +301,30 @@ def test_accurate_path_matches_the_direct_slice_reference_at_the_presets_windows
     shader = shader_reflectances(material, wi, wo, ("point",))["point"]
     direct = direct_reflectance(s.heights, s.pixel[0], material.coherence, material.f0, wi, wo, 5.0)
     assert np.abs(shader - direct).max() <= 1e-2 * direct.max()
+
+
+def test_direct_reference_of_a_2d_field_equals_the_full_window_taylor_sum_and_the_shader():
+    """Snake ridges (a 2D field): the direct non-uniform DFT of e^{ikwh} under the window against the
+    Taylor/FFT bake over every bin of the window, and the shader's 8 x 8 stencil against both."""
+    from prefilter.diffraction.slices import direct_power, in_plane_slice, shader_reflectances, stam_geometry
+    from prefilter.scene import resolve_scene
+
+    material = resolve_scene("diffraction-snake-cylinder").objects[0].material
+    s = material.structure
+    wi, wo, _ = in_plane_slice(30.0, 13)
+    uvw, gain = stam_geometry(wi, wo, material.f0)
+    direct = direct_power(s.heights, s.pixel, material.coherence, uvw, 20.0)
+    terms = taylor_terms(s.heights, s.pixel, sigma=material.coherence)
+    wavelengths, weights = spectral_weights(20.0)
+    xyz = np.zeros((len(wi), 3))
+    for lam, weight in zip(wavelengths, weights, strict=True):
+        k = 2 * np.pi / lam
+        xyz += np.abs(terms.evaluate(k * uvw[:, 0], k * uvw[:, 1], k * uvw[:, 2]))[:, None] ** 2 * weight
+    assert direct.max() > 0.05
+    np.testing.assert_allclose(xyz, direct, atol=1e-6 * direct.max())
+    reflectance = np.maximum(xyz_to_srgb(gain[:, None] * direct), 0.0)
+    shader = shader_reflectances(dataclasses.replace(material, spectral_step=20.0), wi, wo, ("point",))
+    assert np.abs(shader["point"] - reflectance).max() <= 0.03 * reflectance.max()
 
 
 def test_compare_adds_brdf_slices_against_the_direct_reference_for_gratings(tmp_path):

@@ -54,6 +54,8 @@ def bake_dhillon_tables(
     nu, nv = size
     h = np.asarray(heights, np.float64)
     h = h - h.mean()
+    if np.all(h == h[:1]):  # a grating (rows all equal): one row has the same coefficients, |β| > 0 empty
+        h = h[:1]
     rows, cols = h.shape
     order = dhillon_order(float(np.abs(h).max()), w0, epsilon)
     dx, dy = pixel

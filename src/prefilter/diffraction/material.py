@@ -218,7 +218,7 @@ class DiffractionMaterial:
         return table
 
     def comparison_figures(self, out_dir: Path) -> list[str]:
-        """`prefilter compare` extras: BRDF slices against the direct reference (gratings only)."""
+        """`prefilter compare` extras: BRDF slices against the direct reference (not for tiled patches)."""
         from prefilter.diffraction.slices import slice_study, write_slice_figure
 
         study = slice_study(self)

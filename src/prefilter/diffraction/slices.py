@@ -1,15 +1,17 @@
 """BRDF slices of a diffraction material: the shader's paths against a direct windowed reference.
 
-The reference evaluates Stam's windowed transform directly, with no Taylor series and no DFT bins, for
-height fields that vary across the grooves only (gratings: every row of the field equal). The Gaussian
-coherence window exp(−(x² + y²)/(2σ²)), normalised by its integral, then separates:
+The reference evaluates Stam's windowed transform directly, as a non-uniform DFT of e^{ikwh} with no
+Taylor series and no DFT bins: a Riemann sum over the periodically tiled height field under the Gaussian
+coherence window exp(−(x² + y²)/(2σ²)), normalised by its integral,
 
-    P̃(α, β; k w) = [Σ_j dx / (√(2π) σ) e^{−x_j²/(2σ²)} e^{i k w h(x_j)} e^{−i α x_j}] · e^{−σ² β² / 2},
+  P̃(α, β; k w) = Σ_{i,j} dx dy / (2π σ²) e^{−(x_j² + y_i²)/(2σ²)} e^{i k w h(x_j, y_i)} e^{−i(α x_j + β y_i)},
 
-a Riemann sum over the periodically tiled profile within ±WINDOW_SIGMAS σ. Its only errors are the
-window's tail beyond that and aliases at α ± 2π/dx (≥ 125 rad/µm for 0.05 µm pixels, outside the
-visible range |α| ≤ 2k ≤ 33). The reflectance is Stam's, as stam.glsl's df_geometry writes it:
-F (G / w²) 2 cos²θ_i Σ_λ |P̃(k u, k v; k w)|² weight(λ) → XYZ → linear sRGB, at `step_nm` spectral steps.
+within ±WINDOW_SIGMAS σ. For height fields that vary across the grooves only (gratings, the CD: every
+row equal) it separates into a 1D sum times e^{−σ² β² / 2}, cheap enough for 1 nm steps. For 2D fields
+(the snakes) every direction and wavelength costs ~10⁵ exponentials, so slices use fewer directions and
+coarser steps (SLICE_2D). Its only errors are the window's tail and aliases at α ± 2π/dx (≥ 125 rad/µm for
+0.05 µm pixels, outside the visible range |α| ≤ 2k ≤ 33). The reflectance is Stam's, as stam.glsl's
+df_geometry writes it: F (G / w²) 2 cos²θ_i Σ_λ |P̃(k u, k v; k w)|² weight(λ) → XYZ → linear sRGB.
 
 Slices lie in the plane across the grooves: ω_i = (sin θ_i, 0, cos θ_i), ω_o = (sin θ_o, 0, cos θ_o).
 """
@@ -63,17 +65,19 @@ def grating_profile(heights: np.ndarray) -> np.ndarray:
 
 
 def direct_power(
-    heights: np.ndarray, dx: float, sigma: float, uvw: np.ndarray, step_nm: float = 1.0
+    heights: np.ndarray, pixel, sigma: float, uvw: np.ndarray, step_nm: float = 1.0
 ) -> np.ndarray:
-    """XYZ of Σ_λ |P̃(k u, k v; k w)|² x weight(λ) per (u, v, w) row, from the direct windowed transform."""
-    profile = grating_profile(heights)
-    profile = profile - profile.mean()
-    reach = int(math.ceil(WINDOW_SIGMAS * sigma / dx))
-    j = np.arange(-reach, reach + 1)
-    x = j * dx
-    h = profile[j % profile.size]
-    window = dx / (math.sqrt(2.0 * math.pi) * sigma) * np.exp(-(x**2) / (2.0 * sigma**2))
+    """XYZ of Σ_λ |P̃(k u, k v; k w)|² x weight(λ) per (u, v, w) row, from the direct windowed transform;
+    pixel = dx or (dx, dy) in µm."""
+    dx, dy = (pixel, pixel) if np.isscalar(pixel) else pixel
     uvw = np.asarray(uvw, np.float64)
+    try:
+        profile = grating_profile(heights)
+    except PrefilterError:
+        return _direct_power_2d(np.asarray(heights, np.float64), dx, dy, sigma, uvw, step_nm)
+    profile = profile - profile.mean()
+    j, x, window = _window_axis(dx, sigma)
+    h = profile[j % profile.size]
     xyz = np.zeros((len(uvw), 3))
     wavelengths, weights = spectral_weights(step_nm)
     for lam, weight in zip(wavelengths, weights, strict=True):
@@ -85,9 +89,39 @@ def direct_power(
     return xyz
 
 
+def _window_axis(dx: float, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Sample indices j and positions x = j dx within ±WINDOW_SIGMAS σ, and the normalised 1D window there."""
+    reach = int(math.ceil(WINDOW_SIGMAS * sigma / dx))
+    j = np.arange(-reach, reach + 1)
+    x = j * dx
+    return j, x, dx / (math.sqrt(2.0 * math.pi) * sigma) * np.exp(-(x**2) / (2.0 * sigma**2))
+
+
+def _direct_power_2d(heights, dx, dy, sigma, uvw, step_nm, chunk: int = 8) -> np.ndarray:
+    """The 2D windowed sum, directions in chunks: e^{ikwh} over the window for each, then the separable
+    window and Fourier factors on both sides, (w_y e^{−iβy})ᵀ E (w_x e^{−iαx})."""
+    h = heights - heights.mean()
+    rows, cols = h.shape
+    jx, x, wx = _window_axis(dx, sigma)
+    jy, y, wy = _window_axis(dy, sigma)
+    patch = h[np.ix_(jy % rows, jx % cols)]  # the tiled field over the window, (Ny, Nx)
+    xyz = np.zeros((len(uvw), 3))
+    wavelengths, weights = spectral_weights(step_nm)
+    for lam, weight in zip(wavelengths, weights, strict=True):
+        k = 2.0 * math.pi / lam
+        for start in range(0, len(uvw), chunk):
+            alpha, beta, kw = (k * uvw[start : start + chunk, c] for c in range(3))
+            field = np.exp(1j * kw[:, None, None] * patch[None])  # (D, Ny, Nx)
+            ex = wx[None, :] * np.exp(-1j * alpha[:, None] * x[None, :])
+            ey = wy[None, :] * np.exp(-1j * beta[:, None] * y[None, :])
+            p = np.einsum("dy,dyx,dx->d", ey, field, ex, optimize=True)
+            xyz[start : start + chunk] += (np.abs(p) ** 2)[:, None] * weight
+    return xyz
+
+
 def direct_reflectance(
     heights: np.ndarray,
-    dx: float,
+    pixel,
     sigma: float,
     f0: float,
     wi: np.ndarray,
@@ -96,7 +130,7 @@ def direct_reflectance(
 ) -> np.ndarray:
     """Linear sRGB relative reflectance along the slice, from the direct windowed transform (header)."""
     uvw, gain = stam_geometry(wi, wo, f0)
-    xyz = direct_power(heights, dx, sigma, uvw, step_nm)
+    xyz = direct_power(heights, pixel, sigma, uvw, step_nm)
     return np.maximum(xyz_to_srgb(gain[:, None] * xyz), 0.0)
 
 
@@ -135,25 +169,31 @@ def shader_reflectances(
 SLICE_ANGLES = (0.0, 30.0, 60.0)  # θ_i of the slices that `prefilter compare` draws
 
 
+SLICE_2D = (61, 10.0)  # directions per slice and spectral step (nm) of the reference for 2D height fields
+
+
 def slice_study(material, angles=SLICE_ANGLES, step_nm: float = 1.0) -> dict | None:
-    """Every shader path against the direct reference along in-plane slices; None for 2D structures.
+    """Every shader path against the direct reference along in-plane slices (None for tiled patches,
+    whose shader has no coherence window).
 
     Errors per mode: the largest |difference| over the slice relative to the reference's peak, and the
     mean ΔE2000 over θ_o where the reference is brighter than 1 % of its peak (colours scaled by the peak).
+    Gratings get 357 directions at `step_nm`; 2D height fields SLICE_2D's fewer directions and coarser steps.
     """
     from prefilter.metrics import delta_e2000_map
 
     s = material.structure
+    if material.tiles is not None:
+        return None
+    count = 357
     try:
         grating_profile(s.heights)
     except PrefilterError:
-        return None
+        count, step_nm = SLICE_2D
     study: dict = {"angles": list(angles), "step_nm": step_nm, "slices": []}
     for theta_i in angles:
-        wi, wo, theta_o = in_plane_slice(theta_i)
-        reference = direct_reflectance(
-            s.heights, s.pixel[0], material.coherence, material.f0, wi, wo, step_nm
-        )
+        wi, wo, theta_o = in_plane_slice(theta_i, count)
+        reference = direct_reflectance(s.heights, s.pixel, material.coherence, material.f0, wi, wo, step_nm)
         peak = float(reference.max())
         bright = reference @ np.array([0.2126, 0.7152, 0.0722]) > 0.01 * peak
         entry = {"theta_i": theta_i, "theta_o": theta_o, "reference": reference, "modes": {}, "errors": {}}
