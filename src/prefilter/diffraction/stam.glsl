@@ -13,7 +13,7 @@
 // P̃ is the Taylor sum of Single §2.4: Σ_n (k w)^n Σ_bins c_n[bin] exp(-σ² |(α, β) - bin|² / 2), with c_n
 // the Fourier-series coefficients of (i h)^n / n! (mean-subtracted h): the complex terms are summed first
 // (by Horner's rule in k w), then squared. The window is carried by the 2R x 2R DFT bins around the cell
-// that holds (α, β), R = DF_STENCIL (transform.py `stencil_radius`: R σ Δ ≥ 2.5; R = 1, the 2 x 2 nearest
+// that holds (α, β), R = DF_STENCIL (transform.py `stencil_radius`: R σ Δ ≥ 3.5; R = 1, the 2 x 2 nearest
 // bins, when the window is narrow next to the bin spacing Δ, as at the default σ).
 //
 // df_terms: RG32F texture array, layer n = c_n in NumPy FFT order; df_bins = (2π / (W dx), 2π / (H dy),
