@@ -17,9 +17,9 @@ w₀ = 0 (|w| ≤ 2) that is ~3e3 for the blazed grating but ~2e7 for the snake 
 Expanding about the middle of the w range, w₀ = −1, halves the exponent (~4e3 for the snakes) and the order
 N. docs/diffraction.md measures both against the accurate path.
 
-The bake: per wavelength, N + 1 FFTs (one set for all wavelengths when w₀ = 0: Single's terms), the window
-gridded onto the tables' (u, v) grid over every bin in reach (separable Gaussians, as in fast_table.py), and
-the cross terms summed product by product in float64.
+The bake: Single's terms, one FFT each for all wavelengths, re-expanded about w₀ per wavelength; the window
+gridded onto the tables' (u, v) grid over every bin in reach (separable Gaussians, as in fast_table.py); the
+cross terms summed product by product in float64.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ import math
 
 import numpy as np
 import scipy.fft
+import scipy.special
 
 from prefilter.diffraction.spectrum import spectral_weights
 from prefilter.diffraction.transform import WINDOW_RADIUS, _order_for
@@ -64,13 +65,18 @@ def bake_dhillon_tables(
     u, v = np.linspace(-2.0, 2.0, nu), np.linspace(-2.0, 2.0, nv)
     length = 2 * order + 1
     tables = np.zeros((length, nv, nu, 3))
-    powers = np.empty((order + 1, rows, cols), np.complex128)  # (i h)^n / n!
+    # Single's terms c_p = F{(i h)^p / p!} for |w| ≤ 2 (p ≤ N₀), one FFT each for every wavelength; the
+    # expansion about w₀ re-expands their polynomial: P̃ = Σ_p (k w)^p c_p = Σ_n (w − w₀)^n a_n with
+    # a_n = Σ_{p≥n} C(p, n) k^p w₀^{p−n} c_p (in float64 its terms stay below e^{k |w₀| max|h|} ~ 10²)
+    full = max(order, dhillon_order(float(np.abs(h).max()), 0.0, epsilon))
+    powers = np.empty((full + 1, rows, cols), np.complex128)  # (i h)^p / p!
     powers[0] = 1.0
-    for n in range(1, order + 1):
-        powers[n] = powers[n - 1] * (1j * h) / n
-    shared = None
-    if w0 == 0.0:  # exp(i k w0 h) = 1: the same coefficients for every wavelength
-        shared = scipy.fft.fft2(powers, axes=(1, 2), workers=-1) / (rows * cols)
+    for p in range(1, full + 1):
+        powers[p] = powers[p - 1] * (1j * h) / p
+    coefficients = scipy.fft.fft2(powers, axes=(1, 2), workers=-1) / (rows * cols)
+    del powers
+    kept, term = np.arange(order + 1)[:, None], np.arange(full + 1)[None, :]  # n, p
+    binomial = scipy.special.comb(term, kept) * (term >= kept)  # (N + 1, N₀ + 1)
     wavelengths, weights = spectral_weights(step_nm)
     for lam, weight in zip(wavelengths, weights, strict=True):
         k = 2.0 * math.pi / lam
@@ -79,14 +85,9 @@ def bake_dhillon_tables(
         sy = np.nonzero(np.abs(beta_bins) <= reach)[0]
         gu = np.exp(-0.5 * (sigma * (k * u[:, None] - alpha_bins[sx])) ** 2)
         gv = np.exp(-0.5 * (sigma * (k * v[:, None] - beta_bins[sy])) ** 2)
-        if shared is None:
-            phase = np.exp(1j * k * w0 * h)  # (complex64 would be slower: high powers of small h go denormal)
-            coefficients = scipy.fft.fft2(powers * phase, axes=(1, 2), workers=-1) / (rows * cols)
-        else:
-            coefficients = shared
-        window = coefficients[:, sy][:, :, sx]  # (N + 1, Sy, Sx)
+        shift = binomial * k**term * float(w0) ** np.maximum(term - kept, 0)
+        window = np.tensordot(shift, coefficients[:, sy][:, :, sx], axes=(1, 0))  # (N + 1, Sy, Sx)
         a = gv @ window @ gu.T  # (N + 1, nv, nu): the windowed transform of each term
-        a *= (k ** np.arange(order + 1))[:, None, None]
         # Σ_{n+m=j} Re(a_n conj(a_m)) for j = 0..2N, product by product: each T_j keeps its own relative
         # accuracy (an FFT product would leave a floor of 1e-16 max|a|² that (w − w₀)^2N multiplies)
         cross = np.zeros((length, nv, nu))
