@@ -426,7 +426,7 @@ def test_glsl_dhillon_path_equals_its_tables_and_the_direct_reflectance():
         lerp = (1 - ay) * ((1 - ax) * t[y0, x0] + ax * t[y0, x0 + 1]) + ay * (
             (1 - ax) * t[y0 + 1, x0] + ax * t[y0 + 1, x0 + 1]
         )
-        xyz = xyz * (uvw[:, 2] + 1.0)[:, None] + lerp
+        xyz = xyz * (uvw[:, 2] - material.dhillon_w0)[:, None] + lerp
     numpy = np.maximum(xyz_to_srgb(gain[:, None] * xyz), 0.0)
     peak = numpy.max()
     assert peak > 0.1

@@ -11,11 +11,11 @@ so the windowed transform is P̃(w) = Σ_n (w − w₀)ⁿ a_n, a_n(u, v; λ) = 
 T_j in XYZ (weight = D65 x CIE 1931, spectrum.py). The pixel then needs no wavelength loop: one Horner sum
 Σ_j (w − w₀)^j T_j(u, v) over 2N + 1 bilinear lookups (stam.glsl `df_dhillonReflectance`).
 
-The catch is precision. The terms of that sum reach about exp(2 k_max |w − w₀| max|h|) (the Taylor terms'
-own bound, squared) and cancel down to |P̃|² ≤ 1, while the tables and the shader's sum are float32. With
-w₀ = 0 (|w| ≤ 2) that is ~3e3 for the blazed grating but ~2e7 for the snake ridges, past float32's 7 digits.
-Expanding about the middle of the w range, w₀ = −1, halves the exponent (~4e3 for the snakes) and the order
-N. docs/diffraction.md measures both against the accurate path.
+The catch is precision. The terms of that sum are bounded by exp(2 k_max |w − w₀| max|h|) (the Taylor
+terms' own bound, squared) and cancel down to |P̃|² ≤ 1, while the tables and the shader's sum are float32.
+The bound (~2e7 for the snake ridges at w₀ = 0) is pessimistic: with each T_j accurate to its own size, the
+sum's terms on the snakes reach ~2e3 at w₀ = 0 (6.5e-4 of the peak off against the 3D table) and ~10 at
+w₀ = −1, the middle of the w range (3e-6 off), which also cuts N from 33 to 21 (docs/diffraction.md).
 
 The bake: Single's terms, one FFT each for all wavelengths, re-expanded about w₀ per wavelength; the window
 gridded onto the tables' (u, v) grid over every bin in reach (separable Gaussians, as in fast_table.py); the
@@ -30,8 +30,9 @@ import numpy as np
 import scipy.fft
 import scipy.special
 
+from prefilter.diffraction.fast_table import window_gridding
 from prefilter.diffraction.spectrum import spectral_weights
-from prefilter.diffraction.transform import WINDOW_RADIUS, _order_for
+from prefilter.diffraction.transform import _order_for
 
 W_RANGE = (-2.0, 0.0)  # w = −(cos θ1 + cos θ2) on the upper hemisphere
 
@@ -80,11 +81,7 @@ def bake_dhillon_tables(
     wavelengths, weights = spectral_weights(step_nm)
     for lam, weight in zip(wavelengths, weights, strict=True):
         k = 2.0 * math.pi / lam
-        reach = 2.0 * k + WINDOW_RADIUS / sigma
-        sx = np.nonzero(np.abs(alpha_bins) <= reach)[0]
-        sy = np.nonzero(np.abs(beta_bins) <= reach)[0]
-        gu = np.exp(-0.5 * (sigma * (k * u[:, None] - alpha_bins[sx])) ** 2)
-        gv = np.exp(-0.5 * (sigma * (k * v[:, None] - beta_bins[sy])) ** 2)
+        sx, sy, gu, gv = window_gridding(k, sigma, alpha_bins, beta_bins, u, v)
         shift = binomial * k**term * float(w0) ** np.maximum(term - kept, 0)
         window = np.tensordot(shift, coefficients[:, sy][:, :, sx], axes=(1, 0))  # (N + 1, Sy, Sx)
         a = gv @ window @ gu.T  # (N + 1, nv, nu): the windowed transform of each term

@@ -33,6 +33,18 @@ from prefilter.diffraction.transform import WINDOW_RADIUS, periodic_factor
 DEFAULT_SIZE = (257, 257, 33)  # u, v, w samples: odd, so u = 0, v = 0 and w = -1 are grid points
 
 
+def window_gridding(k: float, sigma: float, alpha_bins, beta_bins, u, v):
+    """The coherence window carried from the DFT bins to a (u, v) grid at wavenumber k: the bins in reach of
+    the visible range (|α|, |β| ≤ 2k + WINDOW_RADIUS / σ) and the separable Gaussian weights, so that the
+    windowed transform of coefficients C on the grid is G_v C[sy, sx] G_uᵀ. Returns (sx, sy, G_u, G_v)."""
+    reach = 2.0 * k + WINDOW_RADIUS / sigma
+    sx = np.nonzero(np.abs(alpha_bins) <= reach)[0]
+    sy = np.nonzero(np.abs(beta_bins) <= reach)[0]
+    gu = np.exp(-0.5 * (sigma * (k * np.asarray(u)[:, None] - alpha_bins[sx])) ** 2)
+    gv = np.exp(-0.5 * (sigma * (k * np.asarray(v)[:, None] - beta_bins[sy])) ** 2)
+    return sx, sy, gu, gv
+
+
 def bake_fast_table(
     heights: np.ndarray,
     pixel: tuple[float, float],
@@ -58,11 +70,8 @@ def bake_fast_table(
         k = 2.0 * math.pi / lam
         alpha, beta = k * u, k * v
         if tiles is None:
-            reach = 2.0 * k + WINDOW_RADIUS / sigma
-            sx = np.nonzero(np.abs(alpha_bins) <= reach)[0]
-            sy = np.nonzero(np.abs(beta_bins) <= reach)[0]
-            gu = np.exp(-0.5 * (sigma * (alpha[:, None] - alpha_bins[sx])) ** 2).astype(np.complex64)
-            gv = np.exp(-0.5 * (sigma * (beta[:, None] - beta_bins[sy])) ** 2).astype(np.complex64)
+            sx, sy, gu, gv = window_gridding(k, sigma, alpha_bins, beta_bins, u, v)
+            gu, gv = gu.astype(np.complex64), gv.astype(np.complex64)
         else:
             lx = np.floor(alpha / (2.0 * math.pi / (cols * dx)) + 0.5).astype(np.int64) % cols
             ly = np.floor(beta / (2.0 * math.pi / (rows * dy)) + 0.5).astype(np.int64) % rows
