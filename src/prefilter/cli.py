@@ -60,7 +60,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     if args.mode not in valid:
         raise PrefilterError(f"--mode {args.mode}: not a mode of {scene.name} (valid: {', '.join(valid)})")
     frames = args.frames or 1
-    options = RenderOptions(quant_bits=args.quant_bits, reduced=args.reduced)
+    options = RenderOptions(quant_bits=args.quant_bits, reduced=args.reduced, first_order=args.first_order)
     renderer = Renderer(scene, args.size, target=args.target, options=options)
     try:
         images = []
@@ -93,7 +93,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from prefilter.scene import resolve_scene
 
     scene = resolve_scene(args.scene)
-    options = RenderOptions(quant_bits=args.quant_bits, reduced=args.reduced)
+    options = RenderOptions(quant_bits=args.quant_bits, reduced=args.reduced, first_order=args.first_order)
     result = compare_scene(
         scene,
         args.size,
@@ -158,7 +158,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     scene = resolve_scene(args.scene)
     if args.size:
         scene.size = args.size
-    options = RenderOptions(quant_bits=args.quant_bits, reduced=args.reduced)
+    options = RenderOptions(quant_bits=args.quant_bits, reduced=args.reduced, first_order=args.first_order)
     print(export_scene(scene, Path(args.output), options))
     return 0
 
@@ -200,6 +200,11 @@ def build_parser() -> argparse.ArgumentParser:
             "--reduced",
             action="store_true",
             help="Hart's reduced 100,000-gate model: at most four noise terms, linear fade (§4.2)",
+        )
+        p.add_argument(
+            "--first-order",
+            action="store_true",
+            help="Hart's filters centred on f at the pixel centre, as printed (§3), not on its pixel mean",
         )
 
     p = sub.add_parser("render", help="render one mode of a scene to PNG or EXR")

@@ -22,7 +22,7 @@ import numpy as np
 
 from prefilter import PrefilterError
 from prefilter.geometry import VERTEX_LAYOUT, Mesh, load_mesh, make_primitive
-from prefilter.gl.context import gl_context
+from prefilter.gl.context import fine_derivatives, gl_context
 from prefilter.gl.program import build_program
 from prefilter.gl.uniforms import set_uniforms
 from prefilter.scene import Light, Scene, SceneObject
@@ -48,6 +48,7 @@ void main() { o_colour = texelFetch(u_pass, ivec2(gl_FragCoord.xy), 0); }
 class RenderOptions:
     quant_bits: int | None = None  # Hart §4.3: solid coordinates quantised to this many bits
     reduced: bool = False  # Hart §4.2: the "100,000-gate" variant
+    first_order: bool = False  # Hart §3 as printed: the box is centred on f at the pixel centre
 
 
 def mode_define(mode: str) -> str:
@@ -97,6 +98,7 @@ class _GPUObject:
     ):
         self.ctx, self.obj, self.mesh, self.target, self.options = ctx, obj, mesh, target, options
         self.light_count = light_count
+        self.fine_derivatives = fine_derivatives()  # probed once per process, before any draw
         self.vbo = ctx.buffer(np.ascontiguousarray(mesh.interleaved(), dtype=np.float32).tobytes())
         self.ibo = ctx.buffer(np.ascontiguousarray(mesh.indices, dtype=np.uint32).tobytes())
         self.resources = obj.material.upload(ctx, mesh)
@@ -106,6 +108,8 @@ class _GPUObject:
         if mode not in self.programs:
             vertex, fragment = self.obj.material.shader_sources()
             defines = program_defines(self.obj, mode, self.light_count, self.options)
+            if self.fine_derivatives:  # this context's own property: exported shaders do without it
+                defines["PF_FINE_DERIVATIVES"] = True
             prog = build_program(self.ctx, vertex, fragment, target=self.target, defines=defines)
             layout, names = [], []
             for name, n in VERTEX_LAYOUT:

@@ -1,6 +1,8 @@
 // Fragment stage of Hart's model: one MODE_* define selects the unfiltered, naive or filtered look.
 //   MODE_POINT          c(f) at the pixel centre, eq. (2) (also each pass of the reference)
 //   MODE_NAIVE          c(f with unresolved noise terms dropped), what renderers do today
+//   The hart-* modes centre the box on the pixel mean of f to second order (pt_meanCorrection, beyond
+//   the paper); PT_FIRST_ORDER centres it on f at the pixel centre, as printed.
 //   MODE_HART_MIP       colour-table MIP map over width |grad f| (section 3.3.1)
 //   MODE_HART_SAT       summed-area colour table over width |grad f| (section 3.3.2, eq. 15)
 //   MODE_HART_MIP_ANISO / MODE_HART_SAT_ANISO  the two screen axes of the footprint kept apart: the
@@ -54,9 +56,13 @@ void main() {
     o_colour = vec4(sqrt((stats.y * stats.y + stats.z * stats.z) / 12.0), sqrt(stats.w), 0.0, 1.0);
     return;
 #else
-    vec4 fg = pt_driverGrad(s);
+    vec4 resolved;
+    vec4 fg = pt_driverGradSplit(s, dsdx, dsdy, resolved);
     float gx = dot(fg.xyz, dsdx);
     float gy = dot(fg.xyz, dsdy);
+#ifndef PT_FIRST_ORDER
+    fg.w += pt_meanCorrection(resolved, dsdx, dsdy);  // the box's centre: f's pixel mean, 2nd order
+#endif
 #if defined(MODE_HART_MIP)
     albedo = cm_mip(u_tableMip, fg.w, length(vec2(gx, gy)), u_wrap);
 #elif defined(MODE_HART_SAT)

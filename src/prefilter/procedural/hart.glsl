@@ -6,7 +6,9 @@
 //   df/ds  = 2 (Q s)_xyz + sum_i a_i T_i^T DNoise(T_i s + o_i)           (eqs. 10-12)
 //
 // Defines: PT_TERM_COUNT (0..8, compile-time so loops unroll), PT_REDUCED (Hart §4.2 "100,000-gate"
-// variant: linear instead of quintic fade, i.e. trilinear interpolation of the corner terms).
+// variant: linear instead of quintic fade, i.e. trilinear interpolation of the corner terms),
+// PT_FIRST_ORDER (the filters' box centred on f at the pixel centre as printed, not on its pixel mean),
+// PF_FINE_DERIVATIVES (set by the renderer when dFdx/dFdy are fine; see pt_meanCorrection).
 // Uniforms: pt_quadric (mat4 Q, symmetric), pt_noiseMatrix[i] (T_i), pt_noiseOffset[i] (o_i at time t),
 // pt_noiseAmplitude[i] (a_i). s is in solid-texture units.
 
@@ -48,17 +50,62 @@ float pt_driver(vec3 s) {
     return f;
 }
 
-// (df/ds, f), eqs. (10)-(12).
-vec4 pt_driverGrad(vec3 s) {
+// --- The box's centre: the pixel mean of f to second order (beyond the paper) -----------------------
+// Hart centres the box on f at the pixel centre. Over a box pixel (offsets u, v uniform on [-1/2, 1/2])
+// the mean of f is f + (f_xx + f_yy)/24 + O(4th derivatives): 1/2 tr(H Σ) with Σ = I/12, H the screen
+// Hessian of f. Where f curves within the pixel (noise octaves a few pixels across) that shift is most
+// of the error of the first-order filter (docs/hart.md).
+// H is estimated from the analytic screen gradient g and f of this pixel and of its neighbour in the
+// 2x2 quad (dFdx/dFdy): with PF_FINE_DERIVATIVES (each quad row differences its own pixels; the renderer
+// probes for it, gl/context.fine_derivatives) the cubic Hermite fit through (f, g) at both pixels gives
+// f'' at this pixel, 6h(Δf - g) - 2Δg with h = +1 towards the right/upper neighbour and -1 otherwise
+// (exact for cubics); without it the central difference Δg, f'' at the pair's midpoint.
+// Only the resolved part of f enters: the quadric and each noise term with weight
+// smoothstep(0, 1, -log2 ρ), ρ its footprint in lattice cells (1 below half a cell, 0 beyond a cell);
+// differences of unresolved octaves across a pixel are not curvature but aliasing.
+// PT_FIRST_ORDER restores the paper's centre.
+
+float pt_resolvedWeight(mat3 t, vec3 dsdx, vec3 dsdy) {
+    float rho = max(length(t * dsdx), length(t * dsdy));
+    return smoothstep(0.0, 1.0, -log2(max(rho, 1e-30)));
+}
+
+// (df/ds, f) of eqs. (10)-(12), and in `resolved` the same sum over the quadric and the resolved terms.
+vec4 pt_driverGradSplit(vec3 s, vec3 dsdx, vec3 dsdy, out vec4 resolved) {
     vec4 s4 = vec4(s, 1.0);
     vec4 qs = pt_quadric * s4;
     vec4 result = vec4(2.0 * qs.xyz, dot(s4, qs));
+    resolved = result;
     for (int i = 0; i < PT_TERM_COUNT; ++i) {
-        vec4 n = pt_noiseGrad(pt_noiseMatrix[i] * s + pt_noiseOffset[i]);
+        mat3 t = pt_noiseMatrix[i];
+        vec4 n = pt_noiseGrad(t * s + pt_noiseOffset[i]);
         // T^T dn: row-vector times matrix in GLSL
-        result += pt_noiseAmplitude[i] * vec4(n.xyz * pt_noiseMatrix[i], n.w);
+        vec4 term = pt_noiseAmplitude[i] * vec4(n.xyz * t, n.w);
+        result += term;
+        resolved += pt_resolvedWeight(t, dsdx, dsdy) * term;
     }
     return result;
+}
+
+// (df/ds, f), eqs. (10)-(12).
+vec4 pt_driverGrad(vec3 s) {
+    vec4 resolved;
+    return pt_driverGradSplit(s, vec3(0.0), vec3(0.0), resolved);
+}
+
+// (f_xx + f_yy)/24 of the resolved part (grad, f) over a box pixel. Call in uniform control flow.
+float pt_meanCorrection(vec4 resolved, vec3 dsdx, vec3 dsdy) {
+    float gx = dot(resolved.xyz, dsdx);
+    float gy = dot(resolved.xyz, dsdy);
+#ifdef PF_FINE_DERIVATIVES
+    vec2 h = 1.0 - 2.0 * vec2(ivec2(gl_FragCoord.xy) & 1);  // +1 on a quad's left/lower pixel
+    float fxx = 6.0 * h.x * (dFdx(resolved.w) - gx) - 2.0 * dFdx(gx);
+    float fyy = 6.0 * h.y * (dFdy(resolved.w) - gy) - 2.0 * dFdy(gy);
+#else
+    float fxx = dFdx(gx);
+    float fyy = dFdy(gy);
+#endif
+    return (fxx + fyy) / 24.0;
 }
 
 // The driver as renderers filter it today (pbrt's FBm, Unreal's noise): each noise term whose

@@ -96,6 +96,8 @@ class HartMaterial:
         defines: dict[str, object] = {"PT_TERM_COUNT": count}
         if options.reduced:
             defines["PT_REDUCED"] = True
+        if options.first_order:
+            defines["PT_FIRST_ORDER"] = True
         return defines
 
     def scaled(self, factor: float) -> HartMaterial:
