@@ -110,7 +110,7 @@ def _ramp_scene():
     return replace(scene, objects=[replace(obj, material=material)])
 
 
-def _centre_errors(monkeypatch, fine: bool) -> tuple[float, float]:
+def _centre_errors(monkeypatch, fine: bool, mode: str) -> tuple[float, float]:
     import prefilter.gl.render as render
 
     monkeypatch.setattr(render, "fine_derivatives", lambda: fine)
@@ -120,8 +120,8 @@ def _centre_errors(monkeypatch, fine: bool) -> tuple[float, float]:
     paper = render.Renderer(scene, size, options=render.RenderOptions(first_order=True))
     try:
         mean_f = renderer.reference(256)[..., 0]  # 16 x 16 stratified samples of f per pixel
-        second = renderer.render("hart-sat")[..., 0]
-        first = paper.render("hart-sat")[..., 0]
+        second = renderer.render(mode)[..., 0]
+        first = paper.render(mode)[..., 0]
     finally:
         renderer.release()
         paper.release()
@@ -130,11 +130,20 @@ def _centre_errors(monkeypatch, fine: bool) -> tuple[float, float]:
     return float(np.abs(first - mean_f)[inside].mean()), float(np.abs(second - mean_f)[inside].mean())
 
 
+@pytest.mark.parametrize("mode", ["hart-sat", "gaussian"])
 @pytest.mark.parametrize("fine", [True, False], ids=["fine-derivatives", "coarse-derivatives"])
-def test_second_order_centre_is_closer_to_the_pixel_mean_of_f(monkeypatch, fine):
-    """Oracle: the reference's 256 stratified samples of f per pixel. f(pixel centre) misses their mean
+def test_second_order_centre_is_closer_to_the_pixel_mean_of_f(monkeypatch, fine, mode):
+    """Oracle: the reference's 256 stratified samples of f per pixel. The first-order centre misses their mean
     by about 1e-3 (noise octaves a few pixels across curve within the pixel); the second-order centre
     must miss it by far less. The floor is the ramp's 1/4096 steps and the reference's sampling."""
-    first, second = _centre_errors(monkeypatch, fine)
+    first, second = _centre_errors(monkeypatch, fine, mode)
     assert first > 3e-4  # the effect is real at this scale, well above the ~1e-4 floor
-    assert second < (0.45 if fine else 0.8) * first, (first, second)
+    # measured on llvmpipe: hart-sat 0.37 (fine) / 0.71 (central difference); gaussian 0.60 / 0.79, whose
+    # mean also scales partly resolved octaves by β (noise_stats), which this correction leaves alone
+    bound = {
+        ("hart-sat", True): 0.45,
+        ("hart-sat", False): 0.8,
+        ("gaussian", True): 0.7,
+        ("gaussian", False): 0.85,
+    }
+    assert second < bound[mode, fine] * first, (first, second)

@@ -33,6 +33,7 @@ def gl_context() -> moderngl.Context:
                 f"{INSTALL_HINT}"
             )
         _context = ctx
+        fine_derivatives()  # probed now, while no framebuffer or viewport of anyone else is bound
     return _context
 
 
@@ -61,15 +62,14 @@ def fine_derivatives() -> bool:
     dFdx is v(right) - v(left) of its own row's pixel pair and dFdy likewise along its column.
     """
     global _fine_derivatives
+    ctx = gl_context()  # making the context runs this probe once, before anything else is bound
     if _fine_derivatives is None:
         import numpy as np
 
-        ctx = gl_context()
         prog = ctx.program(vertex_shader=_PROBE_VERT, fragment_shader=_PROBE_FRAG)
         texture = ctx.texture((4, 4), 4, dtype="f4")
         fbo = ctx.framebuffer([texture])
         vao = ctx.vertex_array(prog, [])
-        previous, viewport = ctx.fbo, ctx.viewport
         try:
             fbo.use()
             ctx.viewport = (0, 0, 4, 4)
@@ -77,9 +77,6 @@ def fine_derivatives() -> bool:
             vao.render(moderngl.TRIANGLES, vertices=3)
             got = np.frombuffer(texture.read(), dtype=np.float32).reshape(4, 4, 4)  # [row y][column x]
         finally:
-            if previous is not None:
-                previous.use()
-                ctx.viewport = viewport
             for thing in (vao, fbo, texture, prog):
                 thing.release()
         centre = np.arange(4) + 0.5

@@ -55,7 +55,8 @@ float pt_driver(vec3 s) {
 // the mean of f is f + (f_xx + f_yy)/24 + O(4th derivatives): 1/2 tr(H Σ) with Σ = I/12, H the screen
 // Hessian of f. Where f curves within the pixel (noise octaves a few pixels across) that shift is most
 // of the error of the first-order filter (docs/hart.md).
-// H is estimated from the analytic screen gradient g and f of this pixel and of its neighbour in the
+// H is estimated (hart.frag's pt_meanCorrection: derivatives exist only in fragment shaders, and
+// glsl_eval runs this file in a vertex shader) from the analytic screen gradient g and f of this pixel and of its neighbour in the
 // 2x2 quad (dFdx/dFdy): with PF_FINE_DERIVATIVES (each quad row differences its own pixels; the renderer
 // probes for it, gl/context.fine_derivatives) the cubic Hermite fit through (f, g) at both pixels gives
 // f'' at this pixel, 6h(Δf - g) - 2Δg with h = +1 towards the right/upper neighbour and -1 otherwise
@@ -93,21 +94,6 @@ vec4 pt_driverGrad(vec3 s) {
     return pt_driverGradSplit(s, vec3(0.0), vec3(0.0), resolved);
 }
 
-// (f_xx + f_yy)/24 of the resolved part (grad, f) over a box pixel. Call in uniform control flow.
-float pt_meanCorrection(vec4 resolved, vec3 dsdx, vec3 dsdy) {
-    float gx = dot(resolved.xyz, dsdx);
-    float gy = dot(resolved.xyz, dsdy);
-#ifdef PF_FINE_DERIVATIVES
-    vec2 h = 1.0 - 2.0 * vec2(ivec2(gl_FragCoord.xy) & 1);  // +1 on a quad's left/lower pixel
-    float fxx = 6.0 * h.x * (dFdx(resolved.w) - gx) - 2.0 * dFdx(gx);
-    float fyy = 6.0 * h.y * (dFdy(resolved.w) - gy) - 2.0 * dFdy(gy);
-#else
-    float fxx = dFdx(gx);
-    float fyy = dFdy(gy);
-#endif
-    return (fxx + fyy) / 24.0;
-}
-
 // The driver as renderers filter it today (pbrt's FBm, Unreal's noise): each noise term whose
 // footprint in its own lattice units exceeds half a cell is dropped, the last one faded out
 // (smoothstep(0.3, 0.7, -1 - log2 w), pbrt-v4 FBm), so only the quadric and resolved terms remain.
@@ -142,13 +128,16 @@ vec3 pt_noiseSplit(vec3 jx, vec3 jy) {
 }
 
 // (μ, g_x, g_y, σ_res²): the mean of f over the footprint, the screen gradient of its linear part
-// (variance (g_x² + g_y²) / 12 over a box pixel), and the variance the unresolved noise leaves.
-vec4 pt_driverGaussian(vec3 s, vec3 dsdx, vec3 dsdy) {
+// (variance (g_x² + g_y²) / 12 over a box pixel), and the variance the unresolved noise leaves;
+// `resolved` is (df/ds, f) of the resolved part as in pt_driverGradSplit, for hart.frag's
+// pt_meanCorrection.
+vec4 pt_driverGaussian(vec3 s, vec3 dsdx, vec3 dsdy, out vec4 resolved) {
     vec4 s4 = vec4(s, 1.0);
     vec4 qs = pt_quadric * s4;
     float mu = dot(s4, qs);
     vec3 grad = 2.0 * qs.xyz;
     float residual = 0.0;
+    resolved = vec4(grad, mu);
     for (int i = 0; i < PT_TERM_COUNT; ++i) {
         mat3 t = pt_noiseMatrix[i];
         float a = pt_noiseAmplitude[i];
@@ -157,6 +146,7 @@ vec4 pt_driverGaussian(vec3 s, vec3 dsdx, vec3 dsdy) {
             vec4 n = pt_noiseGrad(t * s + pt_noiseOffset[i]);
             mu += a * split.x * n.w;
             grad += a * split.y * (n.xyz * t);
+            resolved += pt_resolvedWeight(t, dsdx, dsdy) * a * vec4(n.xyz * t, n.w);
         }
         residual += a * a * split.z;
     }
