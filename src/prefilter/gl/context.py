@@ -33,7 +33,7 @@ def gl_context() -> moderngl.Context:
                 f"{INSTALL_HINT}"
             )
         _context = ctx
-        fine_derivatives()  # probed now, while no framebuffer or viewport of anyone else is bound
+        _probe_fine_derivatives(ctx)  # now, while no framebuffer or viewport of anyone else is bound
     return _context
 
 
@@ -56,35 +56,37 @@ void main() {
 
 
 def fine_derivatives() -> bool:
-    """True if dFdx/dFdy are fine derivatives on 2x2 quads aligned to even pixel coordinates.
-
-    The probe draws v = x^2 (1 + y) over 4x4 pixels (x, y = gl_FragCoord) and checks that every pixel's
-    dFdx is v(right) - v(left) of its own row's pixel pair and dFdy likewise along its column.
-    """
-    global _fine_derivatives
-    ctx = gl_context()  # making the context runs this probe once, before anything else is bound
-    if _fine_derivatives is None:
-        import numpy as np
-
-        prog = ctx.program(vertex_shader=_PROBE_VERT, fragment_shader=_PROBE_FRAG)
-        texture = ctx.texture((4, 4), 4, dtype="f4")
-        fbo = ctx.framebuffer([texture])
-        vao = ctx.vertex_array(prog, [])
-        try:
-            fbo.use()
-            ctx.viewport = (0, 0, 4, 4)
-            ctx.clear(0.0, 0.0, 0.0, 0.0)
-            vao.render(moderngl.TRIANGLES, vertices=3)
-            got = np.frombuffer(texture.read(), dtype=np.float32).reshape(4, 4, 4)  # [row y][column x]
-        finally:
-            for thing in (vao, fbo, texture, prog):
-                thing.release()
-        centre = np.arange(4) + 0.5
-        x, y = centre[None, :], centre[:, None]
-        left, bottom = x - (np.arange(4)[None, :] & 1), y - (np.arange(4)[:, None] & 1)
-        want_x = (left + 1.0) ** 2 * (1.0 + y) - left**2 * (1.0 + y)
-        want_y = x**2 * (1.0 + bottom + 1.0) - x**2 * (1.0 + bottom)
-        _fine_derivatives = bool(
-            np.allclose(got[..., 0], want_x, atol=1e-3) and np.allclose(got[..., 1], want_y, atol=1e-3)
-        )
+    """True if dFdx/dFdy are fine derivatives on 2x2 quads aligned to even pixel coordinates (probed
+    once, when the context is made)."""
+    gl_context()
+    assert _fine_derivatives is not None
     return _fine_derivatives
+
+
+def _probe_fine_derivatives(ctx: moderngl.Context) -> None:
+    """Draw v = x^2 (1 + y) over 4x4 pixels (x, y = gl_FragCoord) and check that every pixel's dFdx is
+    v(right) - v(left) of its own row's pixel pair, and dFdy likewise along its column."""
+    global _fine_derivatives
+    import numpy as np
+
+    prog = ctx.program(vertex_shader=_PROBE_VERT, fragment_shader=_PROBE_FRAG)
+    texture = ctx.texture((4, 4), 4, dtype="f4")
+    fbo = ctx.framebuffer([texture])
+    vao = ctx.vertex_array(prog, [])
+    try:
+        fbo.use()
+        ctx.viewport = (0, 0, 4, 4)
+        ctx.clear(0.0, 0.0, 0.0, 0.0)
+        vao.render(moderngl.TRIANGLES, vertices=3)
+        got = np.frombuffer(texture.read(), dtype=np.float32).reshape(4, 4, 4)  # [row y][column x]
+    finally:
+        for thing in (vao, fbo, texture, prog):
+            thing.release()
+    centre = np.arange(4) + 0.5
+    x, y = centre[None, :], centre[:, None]
+    left, bottom = x - (np.arange(4)[None, :] & 1), y - (np.arange(4)[:, None] & 1)
+    want_x = (left + 1.0) ** 2 * (1.0 + y) - left**2 * (1.0 + y)
+    want_y = x**2 * (1.0 + bottom + 1.0) - x**2 * (1.0 + bottom)
+    _fine_derivatives = bool(
+        np.allclose(got[..., 0], want_x, atol=1e-3) and np.allclose(got[..., 1], want_y, atol=1e-3)
+    )

@@ -98,7 +98,6 @@ class _GPUObject:
     ):
         self.ctx, self.obj, self.mesh, self.target, self.options = ctx, obj, mesh, target, options
         self.light_count = light_count
-        self.fine_derivatives = fine_derivatives()  # probed once per process, before any draw
         self.vbo = ctx.buffer(np.ascontiguousarray(mesh.interleaved(), dtype=np.float32).tobytes())
         self.ibo = ctx.buffer(np.ascontiguousarray(mesh.indices, dtype=np.uint32).tobytes())
         self.resources = obj.material.upload(ctx, mesh)
@@ -108,7 +107,7 @@ class _GPUObject:
         if mode not in self.programs:
             vertex, fragment = self.obj.material.shader_sources()
             defines = program_defines(self.obj, mode, self.light_count, self.options)
-            if self.fine_derivatives:  # this context's own property: exported shaders do without it
+            if fine_derivatives():  # this context's own property: exported shaders do without it
                 defines["PF_FINE_DERIVATIVES"] = True
             prog = build_program(self.ctx, vertex, fragment, target=self.target, defines=defines)
             layout, names = [], []

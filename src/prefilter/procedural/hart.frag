@@ -48,7 +48,6 @@ float pt_meanCorrection(vec4 resolved, vec3 dsdx, vec3 dsdy) {
     return (fxx + fyy) / 24.0;
 }
 
-
 void main() {
     vec3 s = v_solid;
     vec3 dsdx = dFdx(s);

@@ -55,10 +55,11 @@ float pt_driver(vec3 s) {
 // the mean of f is f + (f_xx + f_yy)/24 + O(4th derivatives): 1/2 tr(H Σ) with Σ = I/12, H the screen
 // Hessian of f. Where f curves within the pixel (noise octaves a few pixels across) that shift is most
 // of the error of the first-order filter (docs/hart.md).
-// H is estimated (hart.frag's pt_meanCorrection: derivatives exist only in fragment shaders, and
-// glsl_eval runs this file in a vertex shader) from the analytic screen gradient g and f of this pixel and of its neighbour in the
-// 2x2 quad (dFdx/dFdy): with PF_FINE_DERIVATIVES (each quad row differences its own pixels; the renderer
-// probes for it, gl/context.fine_derivatives) the cubic Hermite fit through (f, g) at both pixels gives
+// H is estimated in hart.frag's pt_meanCorrection (derivatives exist only in fragment shaders, and
+// glsl_eval runs this file in a vertex shader) from the analytic screen gradient g and f of this pixel
+// and of its neighbour in the 2x2 quad (dFdx/dFdy): with PF_FINE_DERIVATIVES (each quad row
+// differences its own pixels; the renderer probes for it, gl/context.fine_derivatives) the cubic
+// Hermite fit through (f, g) at both pixels gives
 // f'' at this pixel, 6h(Δf - g) - 2Δg with h = +1 towards the right/upper neighbour and -1 otherwise
 // (exact for cubics); without it the central difference Δg, f'' at the pair's midpoint.
 // Only the resolved part of f enters: the quadric and each noise term with weight
@@ -66,9 +67,13 @@ float pt_driver(vec3 s) {
 // differences of unresolved octaves across a pixel are not curvature but aliasing.
 // PT_FIRST_ORDER restores the paper's centre.
 
-float pt_resolvedWeight(mat3 t, vec3 dsdx, vec3 dsdy) {
-    float rho = max(length(t * dsdx), length(t * dsdy));
-    return smoothstep(0.0, 1.0, -log2(max(rho, 1e-30)));
+// log2 of a term's footprint in its lattice cells: the longer screen axis, jx = T dsdx or jy = T dsdy.
+float pt_footprintLog2(vec3 jx, vec3 jy) {
+    return 0.5 * log2(max(max(dot(jx, jx), dot(jy, jy)), 1e-30));
+}
+
+float pt_resolvedWeight(vec3 jx, vec3 jy) {
+    return smoothstep(0.0, 1.0, -pt_footprintLog2(jx, jy));
 }
 
 // (df/ds, f) of eqs. (10)-(12), and in `resolved` the same sum over the quadric and the resolved terms.
@@ -83,7 +88,7 @@ vec4 pt_driverGradSplit(vec3 s, vec3 dsdx, vec3 dsdy, out vec4 resolved) {
         // T^T dn: row-vector times matrix in GLSL
         vec4 term = pt_noiseAmplitude[i] * vec4(n.xyz * t, n.w);
         result += term;
-        resolved += pt_resolvedWeight(t, dsdx, dsdy) * term;
+        resolved += pt_resolvedWeight(t * dsdx, t * dsdy) * term;
     }
     return result;
 }
@@ -101,8 +106,8 @@ float pt_driverOctaveClamped(vec3 s, vec3 dsdx, vec3 dsdy) {
     vec4 s4 = vec4(s, 1.0);
     float f = dot(s4, pt_quadric * s4);
     for (int i = 0; i < PT_TERM_COUNT; ++i) {
-        float w = max(length(pt_noiseMatrix[i] * dsdx), length(pt_noiseMatrix[i] * dsdy));
-        float weight = smoothstep(0.3, 0.7, -1.0 - log2(max(w, 1e-30)));
+        float log2Cells = pt_footprintLog2(pt_noiseMatrix[i] * dsdx, pt_noiseMatrix[i] * dsdy);
+        float weight = smoothstep(0.3, 0.7, -1.0 - log2Cells);
         if (weight > 0.0) {
             f += weight * pt_noiseAmplitude[i] * pt_noise(pt_noiseMatrix[i] * s + pt_noiseOffset[i]);
         }
@@ -141,12 +146,15 @@ vec4 pt_driverGaussian(vec3 s, vec3 dsdx, vec3 dsdy, out vec4 resolved) {
     for (int i = 0; i < PT_TERM_COUNT; ++i) {
         mat3 t = pt_noiseMatrix[i];
         float a = pt_noiseAmplitude[i];
-        vec3 split = pt_noiseSplit(t * dsdx, t * dsdy);
+        vec3 jx = t * dsdx;
+        vec3 jy = t * dsdy;
+        vec3 split = pt_noiseSplit(jx, jy);
         if (max(abs(split.x), abs(split.y)) > 0.01) {
             vec4 n = pt_noiseGrad(t * s + pt_noiseOffset[i]);
-            mu += a * split.x * n.w;
-            grad += a * split.y * (n.xyz * t);
-            resolved += pt_resolvedWeight(t, dsdx, dsdy) * a * vec4(n.xyz * t, n.w);
+            vec4 term = a * vec4(n.xyz * t, n.w);
+            mu += split.x * term.w;
+            grad += split.y * term.xyz;
+            resolved += pt_resolvedWeight(jx, jy) * term;
         }
         residual += a * a * split.z;
     }
