@@ -15,6 +15,7 @@ import pytest
 from prefilter.gl.evaluate import glsl_eval
 from prefilter.procedural.noise import (
     PERMUTATION,
+    footprint_curvature,
     linear_noise,
     linear_noise_grad,
     perlin_noise,
@@ -220,3 +221,59 @@ def test_glsl_zero_on_lattice_and_periodic(target):
     assert np.all(value[:256] == 0.0)
     np.testing.assert_array_equal(value_shifted, value)
     np.testing.assert_allclose(value[256:], perlin_noise(p[256:].astype(np.float64)), rtol=0, atol=1e-5)
+
+
+def test_footprint_curvature_is_the_second_order_shift_of_the_box_mean():
+    """Oracle: dense sampling of small footprints. Their mean minus n(c) is τ = curvature / 24 up to fourth
+    order; the shift is large against that remainder at a tenth of a cell."""
+    rng = np.random.default_rng(12)
+    c = rng.uniform(0.0, 64.0, (500, 3))
+    q, _ = np.linalg.qr(rng.normal(size=(500, 3, 3)))
+    e1, e2 = 0.1 * q[:, :, 0], 0.07 * q[:, :, 1]
+    u = (np.arange(24) + 0.5) / 24 - 0.5
+    uu, vv = (a.ravel() for a in np.meshgrid(u, u))
+    points = c[:, None] + uu[None, :, None] * e1[:, None] + vv[None, :, None] * e2[:, None]
+    shift = perlin_noise(points).mean(axis=1) - perlin_noise(c)
+    tau = footprint_curvature(c, e1, e2) / 24.0
+    # the midpoint grid's own second moment is (1 - 1/24²)/12 of the box's, hence the factor
+    assert np.sqrt(np.mean((shift - tau * (1 - 1 / 24**2)) ** 2)) < 0.02 * np.sqrt(np.mean(shift**2))
+
+
+@pytest.mark.parametrize("target", ["gl330", "es300"])
+def test_glsl_curvature_matches_central_differences(target):
+    """nz_noiseGradCurv's analytic e1ᵀHe1 + e2ᵀHe2 against central differences of the float64 reference."""
+    rng = np.random.default_rng(13)
+    p = rng.uniform(-40.0, 40.0, (2000, 3)).astype(np.float32)
+    e1 = rng.normal(size=(2000, 3)).astype(np.float32)
+    e2 = (0.5 * rng.normal(size=(2000, 3))).astype(np.float32)
+    prelude = (
+        "vec4 curv(vec3 p, vec3 a, vec3 b) { float k; vec4 g = nz_noiseGradCurv(p, a, b, k);"
+        " vec4 h = nz_noiseGrad(p); return vec4(k, length(g - h), 0.0, 0.0); }"
+    )
+    got = glsl_eval(
+        "curv(p, e1, e2)",
+        {"p": p, "e1": e1, "e2": e2},
+        4,
+        includes=NOISE_GLSL,
+        target=target,
+        prelude=prelude,
+    )
+    want = footprint_curvature(p.astype(np.float64), e1.astype(np.float64), e2.astype(np.float64))
+    np.testing.assert_allclose(got[:, 0], want, rtol=0, atol=2e-4 * np.abs(want).max())
+    assert got[:, 1].max() < 1e-5  # its value and gradient are nz_noiseGrad's
+
+
+def test_glsl_linear_noise_curvature_inside_cells():
+    """The trilinear variant is smooth inside a cell: compare with central differences of linear_noise."""
+    rng = np.random.default_rng(14)
+    cells = rng.integers(-30, 30, (1000, 3))
+    p = (cells + rng.uniform(0.1, 0.9, (1000, 3))).astype(np.float32)
+    e1 = rng.normal(size=(1000, 3)).astype(np.float32)
+    e2 = rng.normal(size=(1000, 3)).astype(np.float32)
+    prelude = "float curv(vec3 p, vec3 a, vec3 b) { float k; nz_linearNoiseGradCurv(p, a, b, k); return k; }"
+    got = glsl_eval("curv(p, e1, e2)", {"p": p, "e1": e1, "e2": e2}, 1, includes=NOISE_GLSL, prelude=prelude)
+    p64, h = p.astype(np.float64), 1e-3
+    want = np.zeros(len(p))
+    for e in (e1.astype(np.float64), e2.astype(np.float64)):
+        want += (linear_noise(p64 + h * e) - 2 * linear_noise(p64) + linear_noise(p64 - h * e)) / h**2
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-3 * np.abs(want).max())

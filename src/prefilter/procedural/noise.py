@@ -7,13 +7,17 @@
 - `perlin_noise_grad` adds the analytic gradient dn/dp, the function DNoise of Hart et al. 1999,
   "Antialiased parameterized solid texturing simplified for consumer-level hardware implementation",
   eq. (12) (Hart's filter width uses a_i |dn/ds T_i ds/dx|).
+- `footprint_curvature(p, e1, e2)`: e1^T H e1 + e2^T H e2 of the noise's Hessian H, by central differences
+  of `perlin_noise` along the unit directions (the quintic fade makes the noise C2, so they converge);
+  over a box footprint spanned by e1, e2 the mean of n is n(p) + footprint_curvature / 24 to second
+  order. The GLSL `nz_noiseGradCurv` computes it analytically and is tested against this.
 - `linear_noise` / `linear_noise_grad`: the same corner contributions interpolated trilinearly (fade(t) = t),
   the reduced noise of Hart's "100,000-gate" implementation (§4.2, Fig. 11). It is only C0: its gradient
   jumps across lattice faces and the grid is visible.
 
 Inputs are points of shape (..., 3) in lattice units, evaluated in float64 with vectorised NumPy.
-The GLSL twin is `glsl/common/noise.glsl`: `nz_noise`, `nz_noiseGrad`, `nz_linearNoise`,
-`nz_linearNoiseGrad`.
+The GLSL twin is `glsl/common/noise.glsl`: `nz_noise`, `nz_noiseGrad`, `nz_noiseGradCurv`,
+`nz_linearNoise`, `nz_linearNoiseGrad`, `nz_linearNoiseGradCurv`.
 """
 
 from __future__ import annotations
@@ -157,6 +161,18 @@ def perlin_noise_grad(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(noise (...), analytic gradient dn/dp (..., 3)) of `perlin_noise` at points p (..., 3)."""
     value, gradient = _noise(p, fade, fade_derivative)
     return value, gradient
+
+
+def footprint_curvature(p: np.ndarray, e1: np.ndarray, e2: np.ndarray, step: float = 1e-4) -> np.ndarray:
+    """e1^T H e1 + e2^T H e2 (...) of `perlin_noise` at p (..., 3), e1 and e2 (..., 3) in lattice units."""
+    centre = perlin_noise(p)
+    total = np.zeros(centre.shape)
+    for e in (e1, e2):
+        length = np.linalg.norm(e, axis=-1, keepdims=True)
+        unit = e / np.maximum(length, 1e-300)
+        second = perlin_noise(p + step * unit) - 2.0 * centre + perlin_noise(p - step * unit)
+        total = total + length[..., 0] ** 2 * second / step**2
+    return total
 
 
 def linear_noise(p: np.ndarray) -> np.ndarray:

@@ -10,9 +10,16 @@
 //                        Hart et al. 1999, "Antialiased parameterized solid texturing simplified for
 //                        consumer-level hardware implementation", eq. (12). It shares the hashing and the
 //                        corner dot products with the value, and its .w equals nz_noise(p).
+// nz_noiseGradCurv(p, e1, e2, out curvature)
+//                        the same vec4, and e1^T H e1 + e2^T H e2 with H the analytic Hessian of the noise at
+//                        p (quintic fade: the noise is C2). Over a box footprint spanned by e1, e2 (lattice
+//                        units) the mean of n is n(p) + curvature / 24 to second order; procedural/hart.glsl
+//                        centres its filters with it. Tested against central differences of the float64 twin
+//                        (prefilter.procedural.noise.footprint_curvature).
 // nz_linearNoise(p)      the same corner contributions blended trilinearly (fade(t) = t): the reduced noise of
 // nz_linearNoiseGrad(p)  Hart's "100,000-gate" implementation (section 4.2, Fig. 11). It is only C0, so the
-//                        lattice is visible and the gradient jumps across cell faces.
+// nz_linearNoiseGradCurv lattice is visible and the gradient jumps across cell faces (its curvature is
+//                        that of the interior of the cell: only the cross terms of the trilinear weights).
 //
 // Parameters: p, a point in lattice units (one cell = 1). Scale and offset it (Hart's T_i) before the call
 // and chain-rule the gradient. float32 keeps about 24 - log2|p| bits for the position inside the cell, so
@@ -149,4 +156,62 @@ vec4 nz_linearNoiseGrad(vec3 p) {
     ivec4 lo, hi;
     nz_hash(ivec3(cell), lo, hi);
     return nz_blendGrad(lo, hi, f, f, vec3(1.0));
+}
+
+vec3 nz_fadeSecondDerivative(vec3 t) {
+    return 60.0 * t * (t * (2.0 * t - 3.0) + 1.0);
+}
+
+// Value, gradient and the footprint curvature tr(M H) = e1^T H e1 + e2^T H e2, H the Hessian of the noise
+// at p, M = e1 e1^T + e2 e2^T. With W_k the product of corner k's weights and (g_k, c_k) its gradient and
+// c_k = g_k . (f - k): H = sum_k c_k d2W_k + dW_k g_k^T + g_k dW_k^T. Along axis a, dW is w'(f_a) times
+// the difference of the corner data across a (blended along the other axes), D_a; d2W is w''(f_a) D_a on
+// the diagonal and w'(f_a) w'(f_b) D_ab (the difference across both axes) off it. So
+//   tr(M H) = sum_a M_aa w''_a D_a[c] + 2 sum_{a<b} M_ab w'_a w'_b D_ab[c] + 2 sum_a w'_a (M D_a[g])_a.
+vec4 nz_blendGradCurv(ivec4 lo, ivec4 hi, vec3 f, vec3 w, vec3 dw, vec3 d2w, vec3 e1, vec3 e2,
+                      out float curvature) {
+    vec3 e = f - 1.0;
+    vec4 g000 = nz_gradCorner(lo.x, f);
+    vec4 g100 = nz_gradCorner(lo.y, vec3(e.x, f.y, f.z));
+    vec4 g010 = nz_gradCorner(lo.z, vec3(f.x, e.y, f.z));
+    vec4 g110 = nz_gradCorner(lo.w, vec3(e.x, e.y, f.z));
+    vec4 g001 = nz_gradCorner(hi.x, vec3(f.x, f.y, e.z));
+    vec4 g101 = nz_gradCorner(hi.y, vec3(e.x, f.y, e.z));
+    vec4 g011 = nz_gradCorner(hi.z, vec3(f.x, e.y, e.z));
+    vec4 g111 = nz_gradCorner(hi.w, e);
+    vec4 x00 = g100 - g000, x10 = g110 - g010, x01 = g101 - g001, x11 = g111 - g011;  // across x
+    vec4 a00 = g000 + w.x * x00, a10 = g010 + w.x * x10, a01 = g001 + w.x * x01, a11 = g011 + w.x * x11;
+    vec4 b0 = mix(a00, a10, w.y);
+    vec4 b1 = mix(a01, a11, w.y);
+    vec4 n = mix(b0, b1, w.z);
+    vec4 y0 = a10 - a00, y1 = a11 - a01;  // across y
+    vec4 dx = mix(mix(x00, x10, w.y), mix(x01, x11, w.y), w.z);
+    vec4 dy = mix(y0, y1, w.z);
+    vec4 dz = b1 - b0;
+    float dxy = mix(x10.w - x00.w, x11.w - x01.w, w.z);
+    float dxz = mix(x01.w, x11.w, w.y) - mix(x00.w, x10.w, w.y);
+    float dyz = y1.w - y0.w;
+    mat3 m = outerProduct(e1, e1) + outerProduct(e2, e2);
+    vec3 slope = vec3(dx.w, dy.w, dz.w);
+    curvature = dot(vec3(m[0][0], m[1][1], m[2][2]) * d2w, slope)
+              + 2.0 * dot(vec3(m[1][0], m[2][0], m[2][1]), vec3(dw.x * dw.y * dxy, dw.x * dw.z * dxz, dw.y * dw.z * dyz))
+              + 2.0 * dot(dw, vec3(dot(m[0], dx.xyz), dot(m[1], dy.xyz), dot(m[2], dz.xyz)));
+    return vec4(n.xyz + dw * slope, n.w);
+}
+
+vec4 nz_noiseGradCurv(vec3 p, vec3 e1, vec3 e2, out float curvature) {
+    vec3 cell = floor(p);
+    vec3 f = p - cell;
+    ivec4 lo, hi;
+    nz_hash(ivec3(cell), lo, hi);
+    return nz_blendGradCurv(lo, hi, f, nz_fade(f), nz_fadeDerivative(f), nz_fadeSecondDerivative(f), e1, e2,
+                            curvature);
+}
+
+vec4 nz_linearNoiseGradCurv(vec3 p, vec3 e1, vec3 e2, out float curvature) {
+    vec3 cell = floor(p);
+    vec3 f = p - cell;
+    ivec4 lo, hi;
+    nz_hash(ivec3(cell), lo, hi);
+    return nz_blendGradCurv(lo, hi, f, f, vec3(1.0), vec3(0.0), e1, e2, curvature);
 }
