@@ -14,7 +14,7 @@ from prefilter.colormap.table import ColourTable
 from prefilter.gl.context import gl_context
 from prefilter.gl.evaluate import glsl_eval
 from prefilter.procedural.hart import HartMaterial, NoiseTerm, driver_gaussian
-from prefilter.procedural.noise import perlin_noise, perlin_noise_grad
+from prefilter.procedural.noise import footprint_curvature, perlin_noise, perlin_noise_grad
 from prefilter.procedural.noise_stats import (
     GLSL,
     footprint_samples,
@@ -132,16 +132,17 @@ def test_noise_table_reproduces_brute_force_variance(rho1, rho2):
     """The stored table against a fresh Monte Carlo run (other seed): residual and total variance."""
     stats = noise_stats()
     rng = np.random.default_rng(99)
-    beta, gamma, lam = (float(v) for v in stats.lookup(np.array(rho1), np.array(rho2)))
+    beta, kappa, gamma, lam = (float(v) for v in stats.lookup(np.array(rho1), np.array(rho2)))
     fresh = measure_entry(rng, rho1, rho2, stats.variance, count=2048)
-    assert abs(fresh[0] - beta) < 0.03 and abs(fresh[1] - gamma) < 0.03
-    assert abs(fresh[2] - lam) <= 0.05 * max(fresh[2], 0.2)
-    # the spread the Gaussian must carry: the second moment of n about the filtered mean β n(c),
+    assert abs(fresh[0] - beta) < 0.03 and abs(fresh[1] - kappa) < 0.03 and abs(fresh[2] - gamma) < 0.03
+    assert abs(fresh[3] - lam) <= 0.05 * max(fresh[3], 0.2)
+    # the spread the Gaussian must carry: the second moment of n about the filtered mean β n(c) + κ τ(c),
     # predicted as γ² E[(∇n·e1)² + (∇n·e2)²] / 12 (linear part over a box) + λ σ_n² (residual)
     centres, e1, e2 = random_footprints(rng, 2048, rho1, rho2)
     points, _ = footprint_samples(centres, e1, e2)
     centre_value, grad = perlin_noise_grad(centres)
-    measured = np.mean((perlin_noise(points) - beta * centre_value[:, None]) ** 2)
+    mean = beta * centre_value + kappa * footprint_curvature(centres, e1, e2) / 24.0
+    measured = np.mean((perlin_noise(points) - mean[:, None]) ** 2)
     linear = gamma**2 * ((grad * e1).sum(1) ** 2 + (grad * e2).sum(1) ** 2).mean() / 12.0
     assert linear + lam * stats.variance == pytest.approx(measured, rel=0.05)
 
@@ -150,13 +151,16 @@ def test_fitted_split_stays_close_to_the_table():
     stats = noise_stats()
     fits = split_fits()
     r1, r2 = np.meshgrid(2.0**stats.grid, 2.0**stats.grid, indexing="ij")
-    beta, gamma, lam = split_fit(fits, r1, r2)
-    assert np.abs(beta - stats.beta).max() < 0.1
+    beta, kappa, gamma, lam = split_fit(fits, r1, r2)
+    assert np.abs(beta - stats.beta).max() < 0.13
+    assert np.abs(kappa - stats.kappa).max() < 0.12
     assert np.abs(gamma - stats.gamma).max() < 0.13
     assert np.abs(lam - stats.lam).max() < 0.1
-    # limits: point footprints keep the noise in the mean, huge ones move it all to σ
-    b, g, lam_ = split_fit(fits, np.array([1e-3, 1e3]), np.array([1e-3, 1e3]))
+    # limits: point footprints keep the noise in the mean (the Taylor series: β = κ = 1), huge ones move
+    # it all to σ
+    b, k, g, lam_ = split_fit(fits, np.array([1e-3, 1e3]), np.array([1e-3, 1e3]))
     np.testing.assert_allclose(b, [1, 0], atol=1e-9)
+    np.testing.assert_allclose(k, [1, 0], atol=1e-9)
     np.testing.assert_allclose(lam_, [0, 1], atol=1e-9)
 
 
@@ -178,9 +182,12 @@ def test_driver_statistics_against_brute_force_footprints():
         true_mean = f.mean(axis=1)
         second_moment = np.mean((f - mu[:, None]) ** 2, axis=1)  # the spread about μ the Gaussian carries
         assert (var_lin + var_res).mean() == pytest.approx(second_moment.mean(), rel=0.2), scale
-        # the mean estimate beats both the centre value (point) and 0 (everything unresolved)
+        # the mean estimate beats both the centre value (point) and 0 (everything unresolved) by far:
+        # measured 0.0002 / 0.013 / 0.021 of the total variance, the centre value 0.004 / 0.21 / 0.98
         total = sum(t.amplitude**2 for t in terms) * noise_stats().variance
-        assert np.mean((mu - true_mean) ** 2) < 0.25 * total
+        centre = sum(t.amplitude * perlin_noise(centres @ t.matrix.T) for t in terms)
+        error = np.mean((mu - true_mean) ** 2)
+        assert error < 0.1 * np.mean((centre - true_mean) ** 2) and error < 0.05 * total, scale
 
 
 def test_generated_glsl_holds_the_fitted_edges():

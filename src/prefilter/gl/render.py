@@ -22,7 +22,7 @@ import numpy as np
 
 from prefilter import PrefilterError
 from prefilter.geometry import VERTEX_LAYOUT, Mesh, load_mesh, make_primitive
-from prefilter.gl.context import fine_derivatives, gl_context
+from prefilter.gl.context import gl_context
 from prefilter.gl.program import build_program
 from prefilter.gl.uniforms import set_uniforms
 from prefilter.scene import Light, Scene, SceneObject
@@ -107,8 +107,6 @@ class _GPUObject:
         if mode not in self.programs:
             vertex, fragment = self.obj.material.shader_sources()
             defines = program_defines(self.obj, mode, self.light_count, self.options)
-            if fine_derivatives():  # this context's own property: exported shaders do without it
-                defines["PF_FINE_DERIVATIVES"] = True
             prog = build_program(self.ctx, vertex, fragment, target=self.target, defines=defines)
             layout, names = [], []
             for name, n in VERTEX_LAYOUT:

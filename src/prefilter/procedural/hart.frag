@@ -1,8 +1,8 @@
 // Fragment stage of Hart's model: one MODE_* define selects the unfiltered, naive or filtered look.
 //   MODE_POINT          c(f) at the pixel centre, eq. (2) (also each pass of the reference)
 //   MODE_NAIVE          c(f with unresolved noise terms dropped), what renderers do today
-//   The hart-* and gaussian modes centre their filter on the pixel mean of f to second order
-//   (pt_meanCorrection, beyond the paper); PT_FIRST_ORDER centres it on f at the pixel centre, as printed.
+//   The hart-* and gaussian modes centre their filter on an estimate of the pixel mean of f
+//   (pt_driverGradMean, beyond the paper); PT_FIRST_ORDER centres it on f at the pixel centre, as printed.
 //   MODE_HART_MIP       colour-table MIP map over width |grad f| (section 3.3.1)
 //   MODE_HART_SAT       summed-area colour table over width |grad f| (section 3.3.2, eq. 15)
 //   MODE_HART_MIP_ANISO / MODE_HART_SAT_ANISO  the two screen axes of the footprint kept apart: the
@@ -32,22 +32,6 @@ uniform float u_quantStep;
 
 out vec4 o_colour;
 
-// (f_xx + f_yy)/24 of the resolved part (grad, f) over a box pixel, the second-order shift from f at the
-// pixel centre to its pixel mean (procedural/hart.glsl explains the estimate). Uniform control flow only.
-float pt_meanCorrection(vec4 resolved, vec3 dsdx, vec3 dsdy) {
-    float gx = dot(resolved.xyz, dsdx);
-    float gy = dot(resolved.xyz, dsdy);
-#ifdef PF_FINE_DERIVATIVES
-    vec2 h = 1.0 - 2.0 * vec2(ivec2(gl_FragCoord.xy) & 1);  // +1 on a quad's left/lower pixel
-    float fxx = 6.0 * h.x * (dFdx(resolved.w) - gx) - 2.0 * dFdx(gx);
-    float fyy = 6.0 * h.y * (dFdy(resolved.w) - gy) - 2.0 * dFdy(gy);
-#else
-    float fxx = dFdx(gx);
-    float fyy = dFdy(gy);
-#endif
-    return (fxx + fyy) / 24.0;
-}
-
 void main() {
     vec3 s = v_solid;
     vec3 dsdx = dFdx(s);
@@ -61,29 +45,20 @@ void main() {
 #elif defined(MODE_NAIVE)
     albedo = cm_point(u_tablePoint, pt_driverOctaveClamped(s, dsdx, dsdy), u_wrap);
 #elif defined(MODE_GAUSSIAN)
-    vec4 resolved;
-    vec4 stats = pt_driverGaussian(s, dsdx, dsdy, resolved);
-#ifndef PT_FIRST_ORDER
-    stats.x += pt_meanCorrection(resolved, dsdx, dsdy);
-#endif
+    vec4 stats = pt_driverGaussian(s, dsdx, dsdy);
     float major = max(abs(stats.y), abs(stats.z));
     float minor = min(abs(stats.y), abs(stats.z));
     float sigma = sqrt(major * major / 48.0 + minor * minor / 12.0 + stats.w);
     albedo = 0.5 * (cm_gaussian(u_tableGaussian, stats.x - 0.25 * major, sigma, u_wrap, u_gaussianRange)
                   + cm_gaussian(u_tableGaussian, stats.x + 0.25 * major, sigma, u_wrap, u_gaussianRange));
 #elif defined(MODE_GAUSSIAN_SIGMA)
-    vec4 resolved;
-    vec4 stats = pt_driverGaussian(s, dsdx, dsdy, resolved);
+    vec4 stats = pt_driverGaussian(s, dsdx, dsdy);
     o_colour = vec4(sqrt((stats.y * stats.y + stats.z * stats.z) / 12.0), sqrt(stats.w), 0.0, 1.0);
     return;
 #else
-    vec4 resolved;
-    vec4 fg = pt_driverGradSplit(s, dsdx, dsdy, resolved);
+    vec4 fg = pt_driverGradMean(s, dsdx, dsdy);  // (df/ds, the box's centre)
     float gx = dot(fg.xyz, dsdx);
     float gy = dot(fg.xyz, dsdy);
-#ifndef PT_FIRST_ORDER
-    fg.w += pt_meanCorrection(resolved, dsdx, dsdy);  // the box's centre: f's pixel mean, 2nd order
-#endif
 #if defined(MODE_HART_MIP)
     albedo = cm_mip(u_tableMip, fg.w, length(vec2(gx, gy)), u_wrap);
 #elif defined(MODE_HART_SAT)

@@ -1,14 +1,14 @@
 // Hart et al. 1999, "Antialiased parameterized solid texturing": the driver f of eq. (1) and its
-// gradient (eqs. 10-12), the octave-clamped driver of today's renderers (the `naive` mode), and the
-// Gaussian statistics of f over the pixel footprint for Heitz et al.'s preconvolved colour maps.
+// gradient (eqs. 10-12), the filters' centre (the pixel mean of f, beyond the paper), the octave-clamped
+// driver of today's renderers (the `naive` mode), and the Gaussian statistics of f over the pixel
+// footprint for Heitz et al.'s preconvolved colour maps.
 //
 //   f(s)   = s^T Q s + sum_i a_i n(T_i s + o_i)                          (eqs. 1, 3, 4)
 //   df/ds  = 2 (Q s)_xyz + sum_i a_i T_i^T DNoise(T_i s + o_i)           (eqs. 10-12)
 //
 // Defines: PT_TERM_COUNT (0..8, compile-time so loops unroll), PT_REDUCED (Hart §4.2 "100,000-gate"
 // variant: linear instead of quintic fade, i.e. trilinear interpolation of the corner terms),
-// PT_FIRST_ORDER (the filters' box centred on f at the pixel centre as printed, not on its pixel mean),
-// PF_FINE_DERIVATIVES (set by the renderer when dFdx/dFdy are fine; see pt_meanCorrection).
+// PT_FIRST_ORDER (the filters' box centred on f at the pixel centre as printed, not on its pixel mean).
 // Uniforms: pt_quadric (mat4 Q, symmetric), pt_noiseMatrix[i] (T_i), pt_noiseOffset[i] (o_i at time t),
 // pt_noiseAmplitude[i] (a_i). s is in solid-texture units.
 
@@ -40,6 +40,14 @@ vec4 pt_noiseGrad(vec3 p) {
 #endif
 }
 
+vec4 pt_noiseGradCurv(vec3 p, vec3 e1, vec3 e2, out float curvature) {
+#ifdef PT_REDUCED
+    return nz_linearNoiseGradCurv(p, e1, e2, curvature);
+#else
+    return nz_noiseGradCurv(p, e1, e2, curvature);
+#endif
+}
+
 // f(s), eq. (1).
 float pt_driver(vec3 s) {
     vec4 s4 = vec4(s, 1.0);
@@ -50,53 +58,88 @@ float pt_driver(vec3 s) {
     return f;
 }
 
-// --- The box's centre: the pixel mean of f to second order (beyond the paper) -----------------------
-// Hart centres the box on f at the pixel centre. Over a box pixel (offsets u, v uniform on [-1/2, 1/2])
-// the mean of f is f + (f_xx + f_yy)/24 + O(4th derivatives): 1/2 tr(H Σ) with Σ = I/12, H the screen
-// Hessian of f. Where f curves within the pixel (noise octaves a few pixels across) that shift is most
-// of the error of the first-order filter (docs/hart.md).
-// H is estimated in hart.frag's pt_meanCorrection (derivatives exist only in fragment shaders, and
-// glsl_eval runs this file in a vertex shader) from the analytic screen gradient g and f of this pixel
-// and of its neighbour in the 2x2 quad (dFdx/dFdy): with PF_FINE_DERIVATIVES (each quad row
-// differences its own pixels; the renderer probes for it, gl/context.fine_derivatives) the cubic
-// Hermite fit through (f, g) at both pixels gives
-// f'' at this pixel, 6h(Δf - g) - 2Δg with h = +1 towards the right/upper neighbour and -1 otherwise
-// (exact for cubics); without it the central difference Δg, f'' at the pair's midpoint.
-// Only the resolved part of f enters: the quadric and each noise term with weight
-// smoothstep(0, 1, -log2 ρ), ρ its footprint in lattice cells (1 below half a cell, 0 beyond a cell);
-// differences of unresolved octaves across a pixel are not curvature but aliasing.
-// PT_FIRST_ORDER restores the paper's centre.
+// --- The filters' centre: the pixel mean of f (beyond the paper) ------------------------------------
+// Hart centres the box on f at the pixel centre. Most of the first-order filter's error is that choice
+// (docs/hart.md): with the pixel's exact mean of f, the same box is 2-4x closer to the reference. Over a
+// box pixel spanned by the screen derivatives dsdx, dsdy the mean of f is estimated term by term:
+//   quadric: f_q + (dsdxᵀ Q dsdx + dsdyᵀ Q dsdy) / 12            (exact: ½ tr(H Σ), H = 2Q, Σ = ds dsᵀ/12)
+//   noise term a n(T s + o), footprint axes jx = T dsdx, jy = T dsdy in its lattice:
+//            a (β n + κ τ),  τ = (jxᵀ H jx + jyᵀ H jy) / 24          (H the analytic Hessian of n)
+// n + τ is the second-order Taylor mean; β and κ (noise_stats, measured by least squares over random
+// footprints) shrink it where the footprint spans a good part of a lattice cell and the Taylor series
+// fails, down to 0 where the term is all spread. PT_FIRST_ORDER restores the paper's centre f.
 
 // log2 of a term's footprint in its lattice cells: the longer screen axis, jx = T dsdx or jy = T dsdy.
 float pt_footprintLog2(vec3 jx, vec3 jy) {
     return 0.5 * log2(max(max(dot(jx, jx), dot(jy, jy)), 1e-30));
 }
 
-float pt_resolvedWeight(vec3 jx, vec3 jy) {
-    return smoothstep(0.0, 1.0, -pt_footprintLog2(jx, jy));
+#include "procedural/noise_stats.glsl"
+
+// (β, κ, γ, λ) of noise_stats for a term whose footprint axes are jx, jy in its lattice cells.
+vec4 pt_noiseSplit(vec3 jx, vec3 jy) {
+    vec2 l = 0.5 * log2(max(vec2(dot(jx, jx), dot(jy, jy)), vec2(1e-30)));
+    vec4 lo = vec4(NS_BETA_EDGES.x, NS_KAPPA_EDGES.x, NS_GAMMA_EDGES.x, NS_ONE_MINUS_LAMBDA_EDGES.x);
+    vec4 hi = vec4(NS_BETA_EDGES.y, NS_KAPPA_EDGES.y, NS_GAMMA_EDGES.y, NS_ONE_MINUS_LAMBDA_EDGES.y);
+    vec4 fall = (1.0 - smoothstep(lo, hi, l.xxxx)) * (1.0 - smoothstep(lo, hi, l.yyyy));
+    return vec4(fall.xyz, 1.0 - fall.w);
 }
 
-// (df/ds, f) of eqs. (10)-(12), and in `resolved` the same sum over the quadric and the resolved terms.
-vec4 pt_driverGradSplit(vec3 s, vec3 dsdx, vec3 dsdy, out vec4 resolved) {
+// (β, κ) alone, for the Hart modes.
+vec2 pt_meanWeights(vec3 jx, vec3 jy) {
+    vec2 l = 0.5 * log2(max(vec2(dot(jx, jx), dot(jy, jy)), vec2(1e-30)));
+    vec2 lo = vec2(NS_BETA_EDGES.x, NS_KAPPA_EDGES.x);
+    vec2 hi = vec2(NS_BETA_EDGES.y, NS_KAPPA_EDGES.y);
+    return (1.0 - smoothstep(lo, hi, l.xx)) * (1.0 - smoothstep(lo, hi, l.yy));
+}
+
+// The quadric's part: vec4(df/ds, f) at s, and in `shift` its exact second-order mean shift.
+vec4 pt_quadricGradMean(vec3 s, vec3 dsdx, vec3 dsdy, out float shift) {
     vec4 s4 = vec4(s, 1.0);
     vec4 qs = pt_quadric * s4;
-    vec4 result = vec4(2.0 * qs.xyz, dot(s4, qs));
-    resolved = result;
+    mat3 q = mat3(pt_quadric);
+    shift = (dot(dsdx, q * dsdx) + dot(dsdy, q * dsdy)) / 12.0;
+    return vec4(2.0 * qs.xyz, dot(s4, qs));
+}
+
+// (df/ds of eqs. (10)-(12), the pixel mean of f as above; f itself with PT_FIRST_ORDER).
+vec4 pt_driverGradMean(vec3 s, vec3 dsdx, vec3 dsdy) {
+    float shift;
+    vec4 result = pt_quadricGradMean(s, dsdx, dsdy, shift);
+#ifndef PT_FIRST_ORDER
+    result.w += shift;
+#endif
     for (int i = 0; i < PT_TERM_COUNT; ++i) {
         mat3 t = pt_noiseMatrix[i];
-        vec4 n = pt_noiseGrad(t * s + pt_noiseOffset[i]);
+        vec3 p = t * s + pt_noiseOffset[i];
+#ifdef PT_FIRST_ORDER
+        vec4 n = pt_noiseGrad(p);
+        float mean = n.w;
+#else
+        vec3 jx = t * dsdx;
+        vec3 jy = t * dsdy;
+        float curvature;
+        vec4 n = pt_noiseGradCurv(p, jx, jy, curvature);
+        vec2 weights = pt_meanWeights(jx, jy);
+        float mean = weights.x * n.w + weights.y * curvature / 24.0;
+#endif
         // T^T dn: row-vector times matrix in GLSL
-        vec4 term = pt_noiseAmplitude[i] * vec4(n.xyz * t, n.w);
-        result += term;
-        resolved += pt_resolvedWeight(t * dsdx, t * dsdy) * term;
+        result += pt_noiseAmplitude[i] * vec4(n.xyz * t, mean);
     }
     return result;
 }
 
 // (df/ds, f), eqs. (10)-(12).
 vec4 pt_driverGrad(vec3 s) {
-    vec4 resolved;
-    return pt_driverGradSplit(s, vec3(0.0), vec3(0.0), resolved);
+    vec4 s4 = vec4(s, 1.0);
+    vec4 qs = pt_quadric * s4;
+    vec4 result = vec4(2.0 * qs.xyz, dot(s4, qs));
+    for (int i = 0; i < PT_TERM_COUNT; ++i) {
+        mat3 t = pt_noiseMatrix[i];
+        vec4 n = pt_noiseGrad(t * s + pt_noiseOffset[i]);
+        result += pt_noiseAmplitude[i] * vec4(n.xyz * t, n.w);
+    }
+    return result;
 }
 
 // The driver as renderers filter it today (pbrt's FBm, Unreal's noise): each noise term whose
@@ -117,46 +160,39 @@ float pt_driverOctaveClamped(vec3 s, vec3 dsdx, vec3 dsdy) {
 
 // --- Gaussian statistics of f over the footprint (Heitz et al. 2014 §4.2 + Hart's gradient) --------
 // For a box footprint whose axes have lengths rho1, rho2 in lattice units, procedural/noise_stats.py
-// measured (β, γ, λ): a term a n(T s + o) adds a β n to the mean, a γ T^T ∇n to the gradient and
-// a² λ σ_n² to the residual variance; the linear part over a box pixel has variance (g_x² + g_y²) / 12.
-// noise_stats.glsl holds separable smoothstep fits of that table (a lookup per term cost 1.3x).
-// Terms with β = γ = 0 (footprints over ~13 cells) are not evaluated: their noise only adds variance.
-
-#include "procedural/noise_stats.glsl"
-
-vec3 pt_noiseSplit(vec3 jx, vec3 jy) {
-    vec2 l = 0.5 * log2(max(vec2(dot(jx, jx), dot(jy, jy)), vec2(1e-30)));
-    vec2 b = 1.0 - smoothstep(NS_BETA_EDGES.x, NS_BETA_EDGES.y, l);
-    vec2 g = 1.0 - smoothstep(NS_GAMMA_EDGES.x, NS_GAMMA_EDGES.y, l);
-    vec2 h = 1.0 - smoothstep(NS_ONE_MINUS_LAMBDA_EDGES.x, NS_ONE_MINUS_LAMBDA_EDGES.y, l);
-    return vec3(b.x * b.y, g.x * g.y, 1.0 - h.x * h.y);
-}
+// measured (β, κ, γ, λ): a term a n(T s + o) adds a (β n + κ τ) to the mean (τ as for the Hart modes'
+// centre), a γ T^T ∇n to the gradient and a² λ σ_n² to the residual variance; the linear part over a box
+// pixel has variance (g_x² + g_y²) / 12. noise_stats.glsl holds separable smoothstep fits of that table
+// (a lookup per term cost 1.3x). Terms with β = κ = γ = 0 (footprints over ~13 cells) are not evaluated:
+// their noise only adds variance. PT_FIRST_ORDER drops the curvature (κ = 0).
 
 // (μ, g_x, g_y, σ_res²): the mean of f over the footprint, the screen gradient of its linear part
-// (variance (g_x² + g_y²) / 12 over a box pixel), and the variance the unresolved noise leaves;
-// `resolved` is (df/ds, f) of the resolved part as in pt_driverGradSplit, for hart.frag's
-// pt_meanCorrection.
-vec4 pt_driverGaussian(vec3 s, vec3 dsdx, vec3 dsdy, out vec4 resolved) {
-    vec4 s4 = vec4(s, 1.0);
-    vec4 qs = pt_quadric * s4;
-    float mu = dot(s4, qs);
-    vec3 grad = 2.0 * qs.xyz;
+// (variance (g_x² + g_y²) / 12 over a box pixel), and the variance the unresolved noise leaves.
+vec4 pt_driverGaussian(vec3 s, vec3 dsdx, vec3 dsdy) {
+    float shift;
+    vec4 quadric = pt_quadricGradMean(s, dsdx, dsdy, shift);
+    vec3 grad = quadric.xyz;
+    float mu = quadric.w;
+#ifndef PT_FIRST_ORDER
+    mu += shift;
+#endif
     float residual = 0.0;
-    resolved = vec4(grad, mu);
     for (int i = 0; i < PT_TERM_COUNT; ++i) {
         mat3 t = pt_noiseMatrix[i];
         float a = pt_noiseAmplitude[i];
         vec3 jx = t * dsdx;
         vec3 jy = t * dsdy;
-        vec3 split = pt_noiseSplit(jx, jy);
-        if (max(abs(split.x), abs(split.y)) > 0.01) {
-            vec4 n = pt_noiseGrad(t * s + pt_noiseOffset[i]);
-            vec4 term = a * vec4(n.xyz * t, n.w);
-            mu += split.x * term.w;
-            grad += split.y * term.xyz;
-            resolved += pt_resolvedWeight(jx, jy) * term;
+        vec4 split = pt_noiseSplit(jx, jy);
+        if (max(split.x, split.z) > 0.01) {
+            float curvature;
+            vec4 n = pt_noiseGradCurv(t * s + pt_noiseOffset[i], jx, jy, curvature);
+#ifdef PT_FIRST_ORDER
+            curvature = 0.0;
+#endif
+            mu += a * (split.x * n.w + split.y * curvature / 24.0);
+            grad += a * split.z * (n.xyz * t);
         }
-        residual += a * a * split.z;
+        residual += a * a * split.w;
     }
     return vec4(mu, dot(grad, dsdx), dot(grad, dsdy), residual * NS_VARIANCE);
 }

@@ -9,6 +9,9 @@ The model (eq. 1): p(s) = c(q(s) + sum_i a_i n(T_i s + o_i)), with
 Solid coordinates s are the object-space position mapped by `solidFromObject` (scale, offset).
 Gradient (eqs. 10-12): df/ds = 2 (Q s)_xyz + sum_i a_i T_i^T dn(T_i s + o_i); the shader multiplies it by
 the screen Jacobian ds/dx (dFdx/dFdy of s) to get the colour-table filter width |grad f| (section 3).
+Beyond the paper, the filters are centred on an estimate of the pixel mean of f rather than on f at the
+pixel centre (procedural/hart.glsl, pt_driverGradMean: the quadric's exact second-order shift, and per
+noise term β n + κ τ with τ its analytic Taylor shift and β, κ from procedural/noise_stats.py).
 
 Scene TOML (under [object.material], type = "hart"):
   quadric = [A, B, C, D, E, F, G, H, I, J]            default all zero
@@ -34,7 +37,7 @@ import numpy as np
 from prefilter.colormap.gaussian import parse_preconvolve_options, preconvolve
 from prefilter.colormap.table import ColourTable, TableTextures, parse_colour_table
 from prefilter.gl.uniforms import bind_samplers, set_uniforms
-from prefilter.procedural.noise import linear_noise_grad, perlin_noise_grad
+from prefilter.procedural.noise import footprint_curvature, linear_noise_grad, perlin_noise_grad
 from prefilter.scene import Reader, register_material
 
 MAX_TERMS = 8
@@ -176,14 +179,18 @@ def driver_gaussian(
     s = np.asarray(s, np.float64)
     s4 = np.concatenate([s, np.ones(s.shape[:-1] + (1,))], axis=-1)
     qs = s4 @ material.quadric
-    mu = np.einsum("...i,...i->...", s4, qs)
+    q = material.quadric[:3, :3]
+    shift = sum(np.einsum("...i,ij,...j->...", d, q, d) for d in (dsdx, dsdy)) / 12.0
+    mu = np.einsum("...i,...i->...", s4, qs) + shift
     grad = 2.0 * qs[..., :3]
     residual = np.zeros(s.shape[:-1])
     for term in material.terms:
         jx, jy = dsdx @ term.matrix.T, dsdy @ term.matrix.T
-        beta, gamma, lam = split_fit(fits, np.linalg.norm(jx, axis=-1), np.linalg.norm(jy, axis=-1))
-        value, dn = perlin_noise_grad(s @ term.matrix.T + term.offset_at(t))
-        mu = mu + term.amplitude * beta * value
+        beta, kappa, gamma, lam = split_fit(fits, np.linalg.norm(jx, axis=-1), np.linalg.norm(jy, axis=-1))
+        p = s @ term.matrix.T + term.offset_at(t)
+        value, dn = perlin_noise_grad(p)
+        tau = footprint_curvature(p, jx, jy) / 24.0
+        mu = mu + term.amplitude * (beta * value + kappa * tau)
         grad = grad + term.amplitude * gamma[..., None] * (dn @ term.matrix)
         residual = residual + term.amplitude**2 * lam
     gx = np.einsum("...i,...i->...", grad, dsdx)

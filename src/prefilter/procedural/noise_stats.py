@@ -1,4 +1,4 @@
-"""Statistics of Perlin noise under a box pixel footprint, for Gaussian colour-map filtering.
+"""Statistics of Perlin noise under a box pixel footprint, for filtering colour tables of noise.
 
 Heitz et al. 2014 §4.2: "For procedural (e.g., noise) functions f, such as Perlin noise, we precompute
 the noise standard deviation for different levels of detail and store it in a 1D texture". We measure,
@@ -7,19 +7,22 @@ A box pixel maps to a parallelogram in noise space spanned by axes e1, e2 (|e1| 
 lattice units); the measurement uses orthogonal axes, random 3D orientations and random positions:
 
   σ_n²       Var[n] over space (one number);
-  β, γ       the least-squares fit n(x) ≈ β n(c) + γ ∇n(c)·(x - c) over all footprints and samples:
-             β is the part of the term that stays in the filtered mean (1 for a point footprint, 0 for
-             a huge one; n(c) and ∇n(c) are uncorrelated, so β is also Cov(m_P, n(c)) / σ_n²), γ the
-             part of Hart's first-order variation that is real at this footprint size;
-  λ(ρ1, ρ2)  = E[ mean_{x in P} (n(x) - β n(c) - γ ∇n(c)·(x - c))² ] / σ_n²: the variance that the
-             first-order model of the resolved part leaves unexplained (0 tiny, 1 huge).
+  β, κ, γ    the least-squares fit n(x) ≈ β n(c) + κ τ(c) + γ ∇n(c)·(x - c) over all footprints and
+             samples, with τ = (e1ᵀ H e1 + e2ᵀ H e2) / 24 the second-order Taylor shift from n(c) to the
+             footprint's mean (H the Hessian of n at c; noise.footprint_curvature): the filtered mean is
+             β n(c) + κ τ(c). Beyond Heitz et al., who keep β n(c) only: for a point footprint β = κ = 1
+             (Taylor), for a huge one both are 0 (everything is spread); a footprint of half a lattice
+             cell leaves 2 % of the mean's error variance that β n(c) alone leaves, one of a cell 15 %.
+             γ is the part of Hart's first-order variation that is real at this footprint size;
+  λ(ρ1, ρ2)  = E[ mean_{x in P} (n(x) - β n(c) - κ τ(c) - γ ∇n(c)·(x - c))² ] / σ_n²: the variance
+             that this model of the resolved part leaves unexplained (0 tiny, 1 huge).
 
 At run time (through the smoothstep fits of `fit_split`, written to noise_stats.glsl) a term a n(T s)
-adds a β n(c) to the mean μ and a γ ∇n(c) to the gradient whose
-footprint variance gives σ_lin², and a² σ_n² λ to σ²: Hart's first-order width where the footprint is
-small against the noise period, Heitz's statistics where it is large. The table is a function of
-(log2 ρ1, log2 ρ2) on GRID (symmetric), stored in data/noise_stats.npz; regenerate it with
-`python -m prefilter.procedural.noise_stats` (about a minute).
+adds a (β n(c) + κ τ(c)) to the mean μ, a γ ∇n(c) to the gradient whose footprint variance gives σ_lin²,
+and a² σ_n² λ to σ²: Hart's first-order width where the footprint is small against the noise period,
+Heitz's statistics where it is large. The table is a function of (log2 ρ1, log2 ρ2) on GRID (symmetric),
+stored in data/noise_stats.npz; regenerate it with `python -m prefilter.procedural.noise_stats` (about a
+minute).
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from prefilter.procedural.noise import perlin_noise, perlin_noise_grad
+from prefilter.procedural.noise import footprint_curvature, perlin_noise, perlin_noise_grad
 
 DATA = Path(__file__).resolve().parent / "data" / "noise_stats.npz"
 GLSL = Path(__file__).resolve().parent / "noise_stats.glsl"
@@ -46,10 +49,11 @@ class NoiseStats:
     variance: float  # σ_n²
     grid: np.ndarray  # log2 ρ at the table nodes
     beta: np.ndarray  # (len(grid), len(grid)), symmetric
+    kappa: np.ndarray
     gamma: np.ndarray
     lam: np.ndarray
 
-    def lookup(self, rho1: np.ndarray, rho2: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def lookup(self, rho1: np.ndarray, rho2: np.ndarray) -> tuple[np.ndarray, ...]:
         """Bilinear interpolation in (log2 ρ1, log2 ρ2), clamped to the grid (as the shader does)."""
         x = np.interp(np.log2(np.maximum(rho1, 1e-30)), self.grid, np.arange(len(self.grid)))
         y = np.interp(np.log2(np.maximum(rho2, 1e-30)), self.grid, np.arange(len(self.grid)))
@@ -67,7 +71,7 @@ class NoiseStats:
                 + tx * ty * table[x0 + 1, y0 + 1]
             )
 
-        return bilinear(self.beta), bilinear(self.gamma), bilinear(self.lam)
+        return bilinear(self.beta), bilinear(self.kappa), bilinear(self.gamma), bilinear(self.lam)
 
 
 def random_footprints(rng: np.random.Generator, count: int, rho1: float, rho2: float):
@@ -99,37 +103,39 @@ def measure_entry(
     variance: float,
     count: int = FOOTPRINTS,
     samples: int = SAMPLES,
-) -> tuple[float, float, float]:
-    """(β, γ, λ) of one footprint shape by Monte Carlo over `count` random footprints."""
+) -> tuple[float, float, float, float]:
+    """(β, κ, γ, λ) of one footprint shape by Monte Carlo over `count` random footprints."""
     centres, e1, e2 = random_footprints(rng, count, rho1, rho2)
     points, offsets = footprint_samples(centres, e1, e2, samples)
     values = perlin_noise(points)
     centre_value, centre_grad = perlin_noise_grad(centres)
     value_term = np.broadcast_to(centre_value[:, None], values.shape)
+    shift_term = np.broadcast_to(footprint_curvature(centres, e1, e2)[:, None] / 24.0, values.shape)
     slope_term = np.einsum("kj,ksj->ks", centre_grad, offsets)
-    design = np.stack([value_term.ravel(), slope_term.ravel()], axis=1)
-    (beta, gamma), *_ = np.linalg.lstsq(design, values.ravel(), rcond=None)
-    lam = float(np.mean((values - beta * value_term - gamma * slope_term) ** 2) / variance)
-    return float(beta), float(gamma), lam
+    design = np.stack([value_term.ravel(), shift_term.ravel(), slope_term.ravel()], axis=1)
+    (beta, kappa, gamma), *_ = np.linalg.lstsq(design, values.ravel(), rcond=None)
+    model = beta * value_term + kappa * shift_term + gamma * slope_term
+    lam = float(np.mean((values - model) ** 2) / variance)
+    return float(beta), float(kappa), float(gamma), lam
 
 
 def measure(seed: int = SEED) -> NoiseStats:
     rng = np.random.default_rng(seed)
     variance = measure_variance(rng)
     n = len(GRID)
-    beta, gamma, lam = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n))
+    tables = np.zeros((4, n, n))  # β, κ, γ, λ
     for i in range(n):
         for j in range(i + 1):
-            entry = measure_entry(rng, 2.0 ** GRID[i], 2.0 ** GRID[j], variance)
-            beta[i, j], gamma[i, j], lam[i, j] = entry
-            beta[j, i], gamma[j, i], lam[j, i] = entry
-    return NoiseStats(variance, GRID.copy(), beta, gamma, lam)
+            tables[:, i, j] = tables[:, j, i] = measure_entry(rng, 2.0 ** GRID[i], 2.0 ** GRID[j], variance)
+    return NoiseStats(variance, GRID.copy(), *tables)
 
 
 @lru_cache(maxsize=1)
 def noise_stats() -> NoiseStats:
     with np.load(DATA) as data:
-        return NoiseStats(float(data["variance"]), data["grid"], data["beta"], data["gamma"], data["lam"])
+        return NoiseStats(
+            float(data["variance"]), data["grid"], data["beta"], data["kappa"], data["gamma"], data["lam"]
+        )
 
 
 def _smooth_fall(log_rho: np.ndarray, e0: float, e1: float) -> np.ndarray:
@@ -141,17 +147,24 @@ def _smooth_fall(log_rho: np.ndarray, e0: float, e1: float) -> np.ndarray:
 def fit_split(stats: NoiseStats) -> dict[str, tuple[float, float]]:
     """Separable smoothstep fits of the table, cheap enough for the shader's inner loop:
 
-        β ≈ F_b(l1) F_b(l2),  γ ≈ F_g(l1) F_g(l2),  1 - λ ≈ F_h(l1) F_h(l2),  F(l) = 1 - smoothstep(e0, e1, l)
+        β ≈ F_b(l1) F_b(l2),  κ ≈ F_k(l1) F_k(l2),  γ ≈ F_g(l1) F_g(l2),  1 - λ ≈ F_h(l1) F_h(l2),
+        F(l) = 1 - smoothstep(e0, e1, l)
 
     with l = log2 ρ. A texture fetch or a const-array lookup per noise term made the gaussian mode about
-    1.5x the naive frame time on llvmpipe; these fits take it to about 1.2x. Their error against the
-    table is reported by `split_fit_error` (max about 0.08 / 0.11 / 0.07).
+    1.5x the naive frame time on llvmpipe; these fits take it to about 1.2x. Their largest errors
+    against the table are checked by tests/test_gaussian.py.
     """
     from scipy.optimize import least_squares
 
     l1, l2 = np.meshgrid(stats.grid, stats.grid, indexing="ij")
     fits = {}
-    for name, target in (("beta", stats.beta), ("gamma", stats.gamma), ("one_minus_lambda", 1.0 - stats.lam)):
+    targets = (
+        ("beta", stats.beta),
+        ("kappa", stats.kappa),
+        ("gamma", stats.gamma),
+        ("one_minus_lambda", 1.0 - stats.lam),
+    )
+    for name, target in targets:
 
         def residual(x, target=target):
             return (_smooth_fall(l1, *x) * _smooth_fall(l2, *x) - target).ravel()
@@ -166,13 +179,14 @@ def split_fits() -> dict[str, tuple[float, float]]:
     return fit_split(noise_stats())
 
 
-def split_fit(fits: dict, rho1: np.ndarray, rho2: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """NumPy twin of pt_noiseSplit: (β, γ, λ) from the fitted edges."""
+def split_fit(fits: dict, rho1: np.ndarray, rho2: np.ndarray) -> tuple[np.ndarray, ...]:
+    """NumPy twin of pt_noiseSplit: (β, κ, γ, λ) from the fitted edges."""
     l1, l2 = np.log2(np.maximum(rho1, 1e-30)), np.log2(np.maximum(rho2, 1e-30))
-    beta = _smooth_fall(l1, *fits["beta"]) * _smooth_fall(l2, *fits["beta"])
-    gamma = _smooth_fall(l1, *fits["gamma"]) * _smooth_fall(l2, *fits["gamma"])
-    lam = 1.0 - _smooth_fall(l1, *fits["one_minus_lambda"]) * _smooth_fall(l2, *fits["one_minus_lambda"])
-    return beta, gamma, lam
+
+    def product(name: str) -> np.ndarray:
+        return _smooth_fall(l1, *fits[name]) * _smooth_fall(l2, *fits[name])
+
+    return product("beta"), product("kappa"), product("gamma"), 1.0 - product("one_minus_lambda")
 
 
 def glsl_source(stats: NoiseStats) -> str:
@@ -180,7 +194,7 @@ def glsl_source(stats: NoiseStats) -> str:
     lines = [
         "// Generated by `python -m prefilter.procedural.noise_stats` (data/noise_stats.npz); do not edit.",
         "// Perlin noise under a box footprint with axis lengths rho1, rho2 (lattice units), l = log2 rho:",
-        "// beta = F(l1) F(l2), gamma likewise, 1 - lambda likewise, F(l) = 1 - smoothstep(e.x, e.y, l).",
+        "// beta = F(l1) F(l2), kappa, gamma and 1 - lambda likewise, F(l) = 1 - smoothstep(e.x, e.y, l).",
         f"const float NS_VARIANCE = {stats.variance:.6f};",
     ]
     for name, (e0, e1) in fits.items():
@@ -192,7 +206,15 @@ def main() -> int:
     stats = measure()
     DATA.parent.mkdir(parents=True, exist_ok=True)
     tmp = DATA.with_suffix(".tmp.npz")
-    np.savez(tmp, variance=stats.variance, grid=stats.grid, beta=stats.beta, gamma=stats.gamma, lam=stats.lam)
+    np.savez(
+        tmp,
+        variance=stats.variance,
+        grid=stats.grid,
+        beta=stats.beta,
+        kappa=stats.kappa,
+        gamma=stats.gamma,
+        lam=stats.lam,
+    )
     tmp.replace(DATA)
     GLSL.write_text(glsl_source(stats))
     print(f"sigma_n^2 = {stats.variance:.6f}; wrote {DATA} and {GLSL}")
