@@ -121,7 +121,7 @@ def test_compare_averages_over_mask():
     mask[5:30, 10:35] = True
     out = metrics.compare(test, ref, mask)
     assert set(out) == {"flip", "delta_e", "rmse", "flip_map"}
-    fmap = metrics.flip_map(test, ref)
+    fmap = metrics.flip_map(np.where(mask[..., None], test, ref), ref)
     np.testing.assert_array_equal(out["flip_map"], fmap)
     assert out["flip"] == pytest.approx(fmap[mask].mean(dtype=np.float64))
     assert out["delta_e"] == pytest.approx(metrics.delta_e2000_map(test, ref)[mask].mean(dtype=np.float64))
@@ -129,6 +129,22 @@ def test_compare_averages_over_mask():
     assert 0 < out["flip"] < 1 and out["delta_e"] > 0
     same = metrics.compare(ref, ref, mask)
     assert same["flip"] == 0 and same["delta_e"] == 0 and same["rmse"] == 0
+
+
+def test_errors_off_the_mask_do_not_leak_into_covered_pixels():
+    """A hard edge just outside the mask (an aliased silhouette) must not change the covered pixels' FLIP,
+    although FLIP's spatial filters would carry it several pixels inwards."""
+    rng = np.random.default_rng(6)
+    ref = np.full((48, 48, 3), 0.5, np.float32)
+    test = np.clip(ref + 0.02 * rng.standard_normal(ref.shape), 0, 1).astype(np.float32)
+    mask = np.zeros((48, 48), bool)
+    mask[8:40, 8:24] = True
+    with_edge = test.copy()
+    with_edge[:, 24:26] = 1.0  # a bright aliased edge in the two columns next to the mask
+    clean = metrics.compare(test, ref, mask)["flip"]
+    assert metrics.compare(with_edge, ref, mask)["flip"] == pytest.approx(clean, rel=1e-6)
+    # evaluated naively on the whole image, the edge would have raised the covered pixels' mean
+    assert metrics.flip_map(with_edge, ref)[mask].mean() > 1.2 * clean
 
 
 def test_empty_mask_raises():

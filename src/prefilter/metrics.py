@@ -10,6 +10,10 @@
 - RMSE: in linear RGB, over masked pixels and the three channels.
 
 FLIP and ΔE2000 judge the displayed image: linear values are clipped to [0, 1] first. RMSE is unclipped.
+FLIP filters spatially (its contrast-sensitivity and feature filters span several pixels), so `compare`
+gives the test image the reference's values off the mask before evaluating it: the errors of pixels that
+are not fully covered (silhouettes, which are geometry aliasing, and the background) neither count nor
+leak into their covered neighbours.
 """
 
 from __future__ import annotations
@@ -107,12 +111,12 @@ def compare(test: np.ndarray, reference: np.ndarray, mask: np.ndarray) -> dict:
     """Errors of `test` against `reference` over `mask` (boolean (H, W), pixels fully covered by the surface).
 
     Returns {"flip": mean FLIP, "delta_e": mean ΔE2000, "rmse": RMSE, "flip_map": (H, W) float32}.
-    FLIP is evaluated on the whole image (it filters spatially) and averaged over the mask.
-    Raises ValueError if the mask is empty or shapes disagree.
+    FLIP is evaluated on the whole image with the reference's values off the mask (see the module
+    docstring) and averaged over the mask. Raises ValueError if the mask is empty or shapes disagree.
     """
     t, r = _check_pair(test, reference)
     m = _check_mask(mask, t.shape)
-    fmap = flip_map(t, r)
+    fmap = flip_map(np.where(m[..., None], t, r), r)
     de = delta_e2000_map(t, r)
     return {
         "flip": float(np.mean(fmap[m], dtype=np.float64)),
