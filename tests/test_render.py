@@ -161,3 +161,62 @@ def test_quantisation_and_reduced_model_change_the_image():
             renderer.release()
     assert np.abs(images["q6"] - images["full"]).mean() > 1e-3
     assert np.abs(images["reduced"] - images["full"]).mean() > 1e-3
+
+
+_SPHERE_OVER_PLANE = """
+name = "sphere-over-plane"
+size = [96, 72]
+background = "#000000"
+[camera]
+eye = [0.0, 0.0, 4.0]
+target = [0.0, 0.0, 0.0]
+fov = 40.0
+[[object]]
+name = "wall"
+shape = "plane"
+params = { size = 8.0 }
+rotate = [90.0, 0.0, 0.0]
+translate = [0.0, 0.0, -1.0]
+lit = false
+[object.material]
+type = "hart"
+quadric = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.25]
+[object.material.colour_table]
+stops = [[0.0, "#336699"], [1.0, "#336699"]]
+[[object]]
+name = "ball"
+shape = "sphere"
+params = { radius = 0.8 }
+lit = false
+[object.material]
+type = "hart"
+quadric = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.75]
+[object.material.colour_table]
+stops = [[0.0, "#cc8844"], [1.0, "#cc8844"]]
+"""
+
+
+def test_covered_pixels_leave_out_the_edges_between_objects(tmp_path):
+    """Oracle: the ball alone, whose reference alpha is its geometric coverage. With the wall behind it every
+    pixel is fully covered, but those the ball covers partly (its silhouette over the wall) are excluded,
+    and no others."""
+    from dataclasses import replace
+
+    from prefilter.scene import load_scene
+
+    path = tmp_path / "scene.toml"
+    path.write_text(_SPHERE_OVER_PLANE)
+    scene = load_scene(path)
+    both = Renderer(scene)
+    ball = Renderer(replace(scene, objects=[scene.objects[1]]))
+    try:
+        reference = both.reference(256)
+        covered = both.covered(reference, 256)
+        ball_alpha = ball.reference(256)[..., 3]
+    finally:
+        both.release()
+        ball.release()
+    assert coverage_mask(reference).all()
+    edge = (ball_alpha > 1e-4) & (ball_alpha < 1 - 1e-4)
+    assert edge.sum() > 50  # the silhouette is there
+    np.testing.assert_array_equal(covered, ~edge)

@@ -26,7 +26,7 @@ import numpy as np
 
 from prefilter.compare import compare_scene, progress_bar
 from prefilter.gl.context import renderer_name
-from prefilter.gl.render import REFERENCE, Renderer, RenderOptions, composite, coverage_mask, scene_modes
+from prefilter.gl.render import REFERENCE, Renderer, RenderOptions, composite, scene_modes
 from prefilter.metrics import compare
 from prefilter.scene import Scene, preset_names, resolve_scene
 
@@ -227,7 +227,7 @@ def multilobe_tradeoff_study(scene: Scene, size, spp: int, frames: int) -> list[
     renderer = Renderer(scene, size)
     try:
         reference = renderer.reference(spp)
-        mask = coverage_mask(reference)
+        mask = renderer.covered(reference, spp)
         reference = composite(reference, scene.background)
     finally:
         renderer.release()
@@ -325,9 +325,9 @@ def quantisation_study(scene: Scene, size, spp: int) -> dict:
     base = Renderer(scene, size)
     try:
         ref = base.reference(spp)
+        mask = base.covered(ref, spp)
     finally:
         base.release()
-    mask = coverage_mask(ref)
     ref_rgb = composite(ref, scene.background)
     for bits in QUANT_BITS:
         r = Renderer(scene, size, options=RenderOptions(quant_bits=bits))
@@ -347,7 +347,7 @@ def reduced_study(scene: Scene, size, spp: int, frames: int) -> dict:
     reduced = Renderer(scene, size, options=RenderOptions(reduced=True))
     try:
         ref = full.reference(spp)
-        mask = coverage_mask(ref)
+        mask = full.covered(ref, spp)
         ref_rgb = composite(ref, scene.background)
         out = {}
         for mode in ("point", "hart-sat"):
@@ -382,7 +382,7 @@ def flicker_study(scene: Scene, size, spp: int, count: int = 12, span: float = 0
         for k in range(count):
             t = span * k / (count - 1)
             ref = renderer.reference(spp, t)
-            masks.append(coverage_mask(ref))
+            masks.append(renderer.covered(ref, spp, t))
             series[REFERENCE].append(composite(ref, scene.background))
             for mode in modes:
                 series[mode].append(composite(renderer.render(mode, t), scene.background))
@@ -419,7 +419,7 @@ def distance_study(scene: Scene, size, spp: int, plot_path: Path | None, count: 
         for k in range(count):
             t = k / (count - 1)
             ref = renderer.reference(spp, t)
-            mask = coverage_mask(ref)
+            mask = renderer.covered(ref, spp, t)
             ref_rgb = composite(ref, scene.background)
             row = {"t": t, "distance": centre_distance(scene, t)}
             for mode in modes:
@@ -451,7 +451,7 @@ def zoom_study(scene: Scene, size, spp: int, plot_path: Path | None, count: int 
         renderer = Renderer(zoomed, size)
         try:
             ref = renderer.reference(spp)
-            mask = coverage_mask(ref)
+            mask = renderer.covered(ref, spp)
             ref_rgb = composite(ref, scene.background)
             row = {"distance": float(distance)}
             for mode in modes:
@@ -482,7 +482,7 @@ def log_fit_study(scene: Scene, size, spp: int) -> dict:
         renderer = Renderer(variant, size)
         try:
             ref = renderer.reference(spp)
-            mask = coverage_mask(ref)
+            mask = renderer.covered(ref, spp)
             image = composite(renderer.render("surface-filter"), scene.background)
             result[moments] = float(compare(image, composite(ref, scene.background), mask)["flip"])
         finally:

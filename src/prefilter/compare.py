@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from prefilter.gl.render import REFERENCE, Renderer, RenderOptions, composite, coverage_mask, scene_modes
+from prefilter.gl.render import REFERENCE, Renderer, RenderOptions, composite, scene_modes
 from prefilter.images import false_colour, labelled_strip, write_image
 from prefilter.metrics import compare
 from prefilter.scene import Scene
@@ -80,7 +80,7 @@ def compare_scene(
     try:
         modes = modes or scene_modes(scene)
         reference_rgba = renderer.reference(spp, t, progress=progress)
-        mask = coverage_mask(reference_rgba)
+        mask = renderer.covered(reference_rgba, spp, t)
         if not mask.any():
             raise ValueError(f"{scene.name}: no pixel is fully covered by a surface; nothing to score")
         background = scene.background

@@ -6,7 +6,9 @@ jittered sub-pixel offsets of the projection, each pass the exact unfiltered (`p
 accumulated on the GPU. The pixel filter is the box over one pixel everywhere.
 
 Images are premultiplied RGBA, linear, top row first; alpha is coverage by the scene's surfaces and
-`composite` puts them over the background. Pixels whose reference alpha is 1 are fully covered.
+`composite` puts them over the background. Errors are measured on fully covered pixels
+(`Renderer.covered`): reference alpha 1, and, in scenes of several objects, every sample seeing the
+same surfaces, so that the edges between objects (silhouettes: geometry aliasing) are left out too.
 """
 
 from __future__ import annotations
@@ -37,6 +39,12 @@ void main() {
     gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
 }
 """
+_SURFACE_ID_FRAG = """
+uniform vec2 u_surfaceId;
+out vec4 o_colour;
+void main() { o_colour = vec4(u_surfaceId, 0.0, 1.0); }
+"""
+SURFACE_ID = "surface-id"  # internal mode: the object's vertex stage, _SURFACE_ID_FRAG
 _ACCUMULATE_FRAG = """
 uniform sampler2D u_pass;
 out vec4 o_colour;
@@ -107,6 +115,8 @@ class _GPUObject:
         if mode not in self.programs:
             vertex, fragment = self.obj.material.shader_sources()
             defines = program_defines(self.obj, mode, self.light_count, self.options)
+            if mode == SURFACE_ID:
+                fragment = _SURFACE_ID_FRAG
             prog = build_program(self.ctx, vertex, fragment, target=self.target, defines=defines)
             layout, names = [], []
             for name, n in VERTEX_LAYOUT:
@@ -213,10 +223,7 @@ class Renderer:
 
         jitter=False places each pass at its stratum's centre (regular supersampling; N = 1 is `point`).
         """
-        n = max(1, round(math.sqrt(spp)))
-        rng = np.random.default_rng(seed)
-        u = (lambda: rng.random()) if jitter else (lambda: 0.5)
-        offsets = [((i + u()) / n - 0.5, (j + u()) / n - 0.5) for j in range(n) for i in range(n)]
+        offsets = sample_offsets(spp, seed, jitter)
         self.accum.use()
         self.ctx.clear(0.0, 0.0, 0.0, 0.0)
         for k, jitter in enumerate(offsets):
@@ -233,6 +240,72 @@ class Renderer:
             if progress:
                 progress(k + 1, len(offsets))
         return self._read(self.accum_tex) / len(offsets)
+
+    def covered(self, reference_rgba: np.ndarray, spp: int, t: float = 0.0, seed: int = 0) -> np.ndarray:
+        """Pixels the errors are measured on: fully covered (reference alpha 1) and, with several objects,
+        seen as the same surfaces by every sample of the reference (`spp`, `seed`: the same offsets; the
+        same opaque object in front and the same blended objects over it), so that the edges between
+        objects are left out as silhouettes are."""
+        mask = coverage_mask(reference_rgba)
+        if len(self.objects) > 1:
+            mask &= self._single_surface(sample_offsets(spp, seed, True), t)
+        return mask
+
+    def _single_surface(self, offsets: list[tuple[float, float]], t: float) -> np.ndarray:
+        """Per sample, each pixel gets (id of the front opaque object, sum of 2^k over the blended objects
+        k in front of it); the pixel is one surface when the min and max of that over all samples agree."""
+        ctx, (w, h) = self.ctx, self.size
+        camera = self.scene.camera.at(t)
+        clip_from_world = camera.projection_matrix(w / h) @ camera.view_matrix()
+        extremes = [ctx.texture((w, h), 4, dtype="f4") for _ in range(2)]
+        targets = [ctx.framebuffer([tex]) for tex in extremes]
+        try:
+            for target, start in zip(targets, (1e30, -1e30), strict=True):
+                target.use()
+                ctx.clear(start, start, start, start)
+            for offset in offsets:
+                jitter = (2.0 * offset[0] / w, 2.0 * offset[1] / h)
+                self.fbo.use()
+                ctx.viewport = (0, 0, w, h)
+                ctx.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+                ctx.enable(moderngl.DEPTH_TEST)
+                blended = 0
+                for k, gpu in enumerate(self.objects):  # opaque objects come first, as in draw()
+                    prog, vao = gpu.program(SURFACE_ID)
+                    uniforms = frame_uniforms(self.scene, gpu.obj, clip_from_world, camera, t, jitter)
+                    set_uniforms(prog, uniforms)
+                    if gpu.obj.double_sided:
+                        ctx.disable(moderngl.CULL_FACE)
+                    else:
+                        ctx.enable(moderngl.CULL_FACE)
+                    if gpu.obj.blend == "over":
+                        ctx.enable(moderngl.BLEND)
+                        ctx.blend_func = moderngl.ONE, moderngl.ONE
+                        ctx.depth_mask = False
+                        prog["u_surfaceId"].value = (0.0, float(2**blended))
+                        blended += 1
+                    else:
+                        ctx.disable(moderngl.BLEND)
+                        ctx.depth_mask = True
+                        prog["u_surfaceId"].value = (float(k + 1), 0.0)
+                    vao.render(moderngl.TRIANGLES)
+                ctx.depth_mask = True
+                ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+                ctx.enable(moderngl.BLEND)
+                ctx.blend_func = moderngl.ONE, moderngl.ONE
+                self.colour.use(location=0)
+                self.accumulate["u_pass"].value = 0
+                for target, equation in zip(targets, (moderngl.MIN, moderngl.MAX), strict=True):
+                    target.use()
+                    ctx.blend_equation = equation
+                    self.accumulate_vao.render(moderngl.TRIANGLES, vertices=3)
+                ctx.blend_equation = moderngl.FUNC_ADD
+                ctx.disable(moderngl.BLEND)
+            low, high = (self._read(tex)[..., :2] for tex in extremes)
+            return np.all(low == high, axis=-1)
+        finally:
+            for thing in (*targets, *extremes):
+                thing.release()
 
     # -- timing --------------------------------------------------------------------------------
     def time_modes(
@@ -279,6 +352,15 @@ class Renderer:
             self.accumulate,
         ):
             obj.release()
+
+
+def sample_offsets(spp: int, seed: int = 0, jitter: bool = True) -> list[tuple[float, float]]:
+    """The reference's N x N (N = round(sqrt(spp))) stratified sub-pixel offsets in [-1/2, 1/2]², row by
+    row; jitter=False puts each at its stratum's centre."""
+    n = max(1, round(math.sqrt(spp)))
+    rng = np.random.default_rng(seed)
+    u = (lambda: rng.random()) if jitter else (lambda: 0.5)
+    return [((i + u()) / n - 0.5, (j + u()) / n - 0.5) for j in range(n) for i in range(n)]
 
 
 def frame_uniforms(
