@@ -100,19 +100,26 @@ float nz_blend(ivec4 lo, ivec4 hi, vec3 f, vec3 w) {
     return mix(b.x, b.y, w.z);
 }
 
+// vec4(g_k, g_k . (f - k)) of the 8 corners k of the cell (hashes lo, hi as nz_hash orders them).
+struct NzCorners {
+    vec4 g000, g100, g010, g110, g001, g101, g011, g111;
+};
+
+NzCorners nz_corners(ivec4 lo, ivec4 hi, vec3 f) {
+    vec3 e = f - 1.0;
+    return NzCorners(nz_gradCorner(lo.x, f), nz_gradCorner(lo.y, vec3(e.x, f.y, f.z)),
+                     nz_gradCorner(lo.z, vec3(f.x, e.y, f.z)), nz_gradCorner(lo.w, vec3(e.x, e.y, f.z)),
+                     nz_gradCorner(hi.x, vec3(f.x, f.y, e.z)), nz_gradCorner(hi.y, vec3(e.x, f.y, e.z)),
+                     nz_gradCorner(hi.z, vec3(f.x, e.y, e.z)), nz_gradCorner(hi.w, e));
+}
+
 // Value and gradient. Corner k carries vec4(g_k, c_k) with c_k = g_k . (f - k); one chain of vec4 mixes
 // gives both the trilinear blend of the gradients (.xyz) and the value (.w, the same mixes as nz_blend);
 // the differences of the c_k along each axis, times dw = weight'(f), add the slope of the weights.
 vec4 nz_blendGrad(ivec4 lo, ivec4 hi, vec3 f, vec3 w, vec3 dw) {
-    vec3 e = f - 1.0;
-    vec4 g000 = nz_gradCorner(lo.x, f);
-    vec4 g100 = nz_gradCorner(lo.y, vec3(e.x, f.y, f.z));
-    vec4 g010 = nz_gradCorner(lo.z, vec3(f.x, e.y, f.z));
-    vec4 g110 = nz_gradCorner(lo.w, vec3(e.x, e.y, f.z));
-    vec4 g001 = nz_gradCorner(hi.x, vec3(f.x, f.y, e.z));
-    vec4 g101 = nz_gradCorner(hi.y, vec3(e.x, f.y, e.z));
-    vec4 g011 = nz_gradCorner(hi.z, vec3(f.x, e.y, e.z));
-    vec4 g111 = nz_gradCorner(hi.w, e);
+    NzCorners c = nz_corners(lo, hi, f);
+    vec4 g000 = c.g000, g100 = c.g100, g010 = c.g010, g110 = c.g110;
+    vec4 g001 = c.g001, g101 = c.g101, g011 = c.g011, g111 = c.g111;
     vec4 a00 = mix(g000, g100, w.x);
     vec4 a10 = mix(g010, g110, w.x);
     vec4 a01 = mix(g001, g101, w.x);
@@ -170,15 +177,9 @@ vec3 nz_fadeSecondDerivative(vec3 t) {
 //   tr(M H) = sum_a M_aa w''_a D_a[c] + 2 sum_{a<b} M_ab w'_a w'_b D_ab[c] + 2 sum_a w'_a (M D_a[g])_a.
 vec4 nz_blendGradCurv(ivec4 lo, ivec4 hi, vec3 f, vec3 w, vec3 dw, vec3 d2w, vec3 e1, vec3 e2,
                       out float curvature) {
-    vec3 e = f - 1.0;
-    vec4 g000 = nz_gradCorner(lo.x, f);
-    vec4 g100 = nz_gradCorner(lo.y, vec3(e.x, f.y, f.z));
-    vec4 g010 = nz_gradCorner(lo.z, vec3(f.x, e.y, f.z));
-    vec4 g110 = nz_gradCorner(lo.w, vec3(e.x, e.y, f.z));
-    vec4 g001 = nz_gradCorner(hi.x, vec3(f.x, f.y, e.z));
-    vec4 g101 = nz_gradCorner(hi.y, vec3(e.x, f.y, e.z));
-    vec4 g011 = nz_gradCorner(hi.z, vec3(f.x, e.y, e.z));
-    vec4 g111 = nz_gradCorner(hi.w, e);
+    NzCorners c = nz_corners(lo, hi, f);
+    vec4 g000 = c.g000, g100 = c.g100, g010 = c.g010, g110 = c.g110;
+    vec4 g001 = c.g001, g101 = c.g101, g011 = c.g011, g111 = c.g111;
     vec4 x00 = g100 - g000, x10 = g110 - g010, x01 = g101 - g001, x11 = g111 - g011;  // across x
     vec4 a00 = g000 + w.x * x00, a10 = g010 + w.x * x10, a01 = g001 + w.x * x01, a11 = g011 + w.x * x11;
     vec4 b0 = mix(a00, a10, w.y);
