@@ -85,12 +85,20 @@ vec4 pt_noiseSplit(vec3 jx, vec3 jy) {
     return vec4(fall.xyz, 1.0 - fall.w);
 }
 
-// (β, κ) alone, for the Hart modes.
-vec2 pt_meanWeights(vec3 jx, vec3 jy) {
-    vec2 l = 0.5 * log2(max(vec2(dot(jx, jx), dot(jy, jy)), vec2(1e-30)));
-    vec2 lo = vec2(NS_BETA_EDGES.x, NS_KAPPA_EDGES.x);
-    vec2 hi = vec2(NS_BETA_EDGES.y, NS_KAPPA_EDGES.y);
-    return (1.0 - smoothstep(lo, hi, l.xx)) * (1.0 - smoothstep(lo, hi, l.yy));
+// Noise term i at s with footprint axes jx, jy: (T^T dn, β n + κ τ) for weights = (β, κ). With
+// PT_FIRST_ORDER τ is not computed: (T^T dn, β n).
+vec4 pt_termGradMean(int i, vec3 s, vec3 jx, vec3 jy, vec2 weights) {
+    mat3 t = pt_noiseMatrix[i];
+    vec3 p = t * s + pt_noiseOffset[i];
+#ifdef PT_FIRST_ORDER
+    vec4 n = pt_noiseGrad(p);
+    float mean = weights.x * n.w;
+#else
+    float curvature;
+    vec4 n = pt_noiseGradCurv(p, jx, jy, curvature);
+    float mean = weights.x * n.w + weights.y * curvature / 24.0;
+#endif
+    return vec4(n.xyz * t, mean);  // T^T dn: row-vector times matrix in GLSL
 }
 
 // The quadric's part: vec4(df/ds, f) at s, and in `shift` its exact second-order mean shift.
@@ -110,21 +118,14 @@ vec4 pt_driverGradMean(vec3 s, vec3 dsdx, vec3 dsdy) {
     result.w += shift;
 #endif
     for (int i = 0; i < PT_TERM_COUNT; ++i) {
-        mat3 t = pt_noiseMatrix[i];
-        vec3 p = t * s + pt_noiseOffset[i];
+        vec3 jx = pt_noiseMatrix[i] * dsdx;
+        vec3 jy = pt_noiseMatrix[i] * dsdy;
 #ifdef PT_FIRST_ORDER
-        vec4 n = pt_noiseGrad(p);
-        float mean = n.w;
+        vec2 weights = vec2(1.0, 0.0);  // f itself
 #else
-        vec3 jx = t * dsdx;
-        vec3 jy = t * dsdy;
-        float curvature;
-        vec4 n = pt_noiseGradCurv(p, jx, jy, curvature);
-        vec2 weights = pt_meanWeights(jx, jy);
-        float mean = weights.x * n.w + weights.y * curvature / 24.0;
+        vec2 weights = pt_noiseSplit(jx, jy).xy;
 #endif
-        // T^T dn: row-vector times matrix in GLSL
-        result += pt_noiseAmplitude[i] * vec4(n.xyz * t, mean);
+        result += pt_noiseAmplitude[i] * pt_termGradMean(i, s, jx, jy, weights);
     }
     return result;
 }
@@ -178,19 +179,14 @@ vec4 pt_driverGaussian(vec3 s, vec3 dsdx, vec3 dsdy) {
 #endif
     float residual = 0.0;
     for (int i = 0; i < PT_TERM_COUNT; ++i) {
-        mat3 t = pt_noiseMatrix[i];
         float a = pt_noiseAmplitude[i];
-        vec3 jx = t * dsdx;
-        vec3 jy = t * dsdy;
+        vec3 jx = pt_noiseMatrix[i] * dsdx;
+        vec3 jy = pt_noiseMatrix[i] * dsdy;
         vec4 split = pt_noiseSplit(jx, jy);
         if (max(split.x, split.z) > 0.01) {
-            float curvature;
-            vec4 n = pt_noiseGradCurv(t * s + pt_noiseOffset[i], jx, jy, curvature);
-#ifdef PT_FIRST_ORDER
-            curvature = 0.0;
-#endif
-            mu += a * (split.x * n.w + split.y * curvature / 24.0);
-            grad += a * split.z * (n.xyz * t);
+            vec4 term = pt_termGradMean(i, s, jx, jy, split.xy);
+            mu += a * term.w;
+            grad += a * split.z * term.xyz;
         }
         residual += a * a * split.w;
     }
