@@ -174,3 +174,27 @@ vec4 cm_gaussian(sampler2D pre, float mu, float sigma, int wrapMode, vec3 range)
     float v = (clamp(sigma / range.z, 0.0, 1.0) * (rows - 1.0) + 0.5) / rows;
     return textureLod(pre, vec2(u, v), 0.0);
 }
+
+// Box-filtered preconvolved map: the mean of C̄(·, σ) over [μ − w/2, μ + w/2], i.e. the table convolved
+// with box(w) * N(0, σ²), as a difference of the integrated rows of colormap/gaussian.py
+// (PreconvolvedMap.box_data: Hart's summed-area table over each σ row, eqs. 13-15). box: that texture,
+// 3n + 1 columns holding S over [-n, 2n] μ texels (n over [lo, hi]), LINEAR; range as cm_gaussian. Widths
+// below one μ texel are widened to one (as cm_sat: float32 sums); modulo: a width of a period or more
+// gives the row mean (Hart's rule); clamp: a box beyond the stored copies is cut to them. No branch
+// (llvmpipe samples under a divergent branch on every lane, and an if on u_wrap cost 6 % of a frame).
+vec4 cm_gaussianBox(sampler2D box, float mu, float width, float sigma, int wrapMode, vec3 range) {
+    ivec2 size = textureSize(box, 0);
+    float columns = float(size.x);
+    float n = (columns - 1.0) / 3.0;
+    float v = (clamp(sigma / range.z, 0.0, 1.0) * (float(size.y) - 1.0) + 0.5) / float(size.y);
+    float x = (mu - range.x) / (range.y - range.x) * n;
+    float w = max(abs(width) / (range.y - range.x) * n, 1.0);
+    bool modulo = wrapMode != CM_CLAMP;
+    x = modulo ? x - n * floor(x / n) : x;  // one period: [x - w/2, x + w/2] stays within [-n, 2n]
+    w = modulo ? min(w, n) : w;
+    float a = clamp(x - 0.5 * w, -n, 2.0 * n - 1.0);
+    float b = clamp(x + 0.5 * w, 1.0 - n, 2.0 * n);
+    vec4 sb = textureLod(box, vec2((b + n + 0.5) / columns, v), 0.0);
+    vec4 sa = textureLod(box, vec2((a + n + 0.5) / columns, v), 0.0);
+    return (sb - sa) / (b - a);
+}

@@ -16,6 +16,16 @@ v = (σ / sigma_max · (n_sigma − 1) + 0.5) / n_sigma, bilinear. σ > sigma_ma
 tables with sigma_max = 1 the result is the table mean to 1e-8 there; for clamp tables it is an error
 that grows with σ (documented limit).
 
+Box-filtered lookups (`PreconvolvedMap.box_data`, cm_gaussianBox): the mean of C̄(·, σ) over a box
+[μ − w/2, μ + w/2], i.e. the table convolved with box(w) * N(0, σ²), from the integral of each row over μ
+(Hart's summed-area table, eqs. 13-15, applied to the preconvolved rows; C̄ taken as constant over each
+μ texel, so the integral is exact at texel edges and linear between them). Layout (n_sigma, 3 n_mu + 1,
+4): column c holds S(c − n_mu), S(y) = ∫_0^y C̄ over y μ texels, for y in [−n_mu, 2 n_mu]: three copies
+of [lo, hi], the table's periods (modulo) or its edge columns extended (clamp), so a box never needs a
+branch. Modulo: widths of a whole period or more give the row mean (Hart's rule for widths over the
+table). Clamp: a box reaching beyond the three copies is cut to them (it is then nearly all the edge
+colour anyway).
+
 Bake: modulo tables by the exact Fourier series of the piecewise-constant table times the Gaussian's
 transfer function exp(−2π²σ²k²), |k| <= 2 n (exact to 1e-15 for σ >= 1/n); narrower σ and all clamp
 tables by the edge form C̄ = c_last + Σ_e (c_{e−1} − c_e) Φ((x_e − μ)/σ) over the entry edges x_e.
@@ -62,6 +72,51 @@ class PreconvolvedMap:
         texture.repeat_x = self.wrap == "modulo"
         texture.repeat_y = False
         return texture
+
+    def box_data(self) -> np.ndarray:
+        """The integrated rows for cm_gaussianBox (layout in the module docstring), float32."""
+        d = self.data.astype(np.float64)
+        n_sigma, n_mu, _ = d.shape
+        if self.wrap == "modulo":
+            tiled = np.concatenate([d, d, d], axis=1)
+        else:
+            edges = [np.repeat(d[:, :1], n_mu, axis=1), d, np.repeat(d[:, -1:], n_mu, axis=1)]
+            tiled = np.concatenate(edges, axis=1)
+        s = np.concatenate([np.zeros((n_sigma, 1, 4)), np.cumsum(tiled, axis=1)], axis=1)
+        return (s - s[:, n_mu : n_mu + 1]).astype(np.float32)  # S(0) = 0: the smallest float32 magnitudes
+
+    def upload_box(self, ctx: moderngl.Context) -> moderngl.Texture:
+        data = self.box_data()
+        texture = ctx.texture(
+            (data.shape[1], data.shape[0]), 4, np.ascontiguousarray(data).tobytes(), dtype="f4"
+        )
+        texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        texture.repeat_x = texture.repeat_y = False
+        return texture
+
+    def box_lookup(self, mu: np.ndarray, width: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+        """NumPy float64 twin of cm_gaussianBox over this bake (without the texture unit's rounding)."""
+        n_sigma, n_mu, _ = self.data.shape
+        lo, hi = self.mu_range
+        box = self.box_data().astype(np.float64)
+        x = (np.asarray(mu, np.float64) - lo) / (hi - lo) * n_mu
+        w = np.maximum(np.abs(np.asarray(width, np.float64)) / (hi - lo) * n_mu, 1.0)
+        if self.wrap == "modulo":
+            x, w = x - n_mu * np.floor(x / n_mu), np.minimum(w, n_mu)
+        a = np.clip(x - 0.5 * w, -n_mu, 2 * n_mu - 1)
+        b = np.clip(x + 0.5 * w, -n_mu + 1, 2 * n_mu)
+        y = np.clip(np.asarray(sigma, np.float64) / self.sigma_max, 0.0, 1.0) * (n_sigma - 1)
+        y0 = np.minimum(np.floor(y).astype(int), n_sigma - 2)
+        ty = (y - y0)[..., None]
+
+        def integral(at):  # S(at), bilinear like the texture
+            col = at + n_mu
+            c0 = np.clip(np.floor(col).astype(int), 0, box.shape[1] - 2)
+            tc = (col - c0)[..., None]
+            row = lambda j: (1 - tc) * box[j, c0] + tc * box[j, c0 + 1]  # noqa: E731
+            return (1 - ty) * row(y0) + ty * row(y0 + 1)
+
+        return (integral(b) - integral(a)) / (b - a)[..., None]
 
     def lookup(self, mu: np.ndarray, sigma: np.ndarray) -> np.ndarray:
         """NumPy twin of cm_gaussian (bilinear with the same half-texel remapping), for tests."""

@@ -9,9 +9,10 @@
 //                       linearised f over a box pixel is box(|df/dx|) * box(|df/dy|), a trapezoid
 //   MODE_HART_WIDTH     the filter width in table entries, log scale 1 (black) .. n (white), Fig. 9c
 //   MODE_GAUSSIAN       Heitz et al.'s preconvolved colour map at the footprint's (μ, σ) of f. The linear
-//                       part of f over a box pixel is box(|g_x|) * box(|g_y|), flat-topped; two Gaussians
-//                       at μ ± g_major/4, each with the variance of its half (g_major²/48 + g_minor²/12
-//                       + σ_res²), follow it better than one where the gradient dominates (zone plate).
+//                       part of f over a box pixel is box(|g_x|) * box(|g_y|), flat-topped: the map is
+//                       read box-filtered over the major axis |g_major| (cm_gaussianBox, the summed rows of
+//                       the bake) with the Gaussian's variance g_minor²/12 + σ_res², which follows it where
+//                       the gradient dominates (zone plate, wood) and is C̄(μ, σ) where it does not.
 //   MODE_GAUSSIAN_SIGMA diagnostic: (σ_lin, σ_res, 0), the linear (Hart) and unresolved-noise parts of σ
 // u_quantStep > 0 quantises solid coordinates to that step (Hart section 4.3, Fig. 10).
 
@@ -25,7 +26,7 @@ in vec3 v_normal;
 uniform sampler2D u_tablePoint;  // @table u: the driver value f in table periods, n = width entries (a power of two), entry i covering f in [i/n, (i+1)/n); read with texelFetch at i = floor(n fract(f)) for u_wrap = 0 (modulo) or min(floor(n clamp(f, 0, 1)), n - 1) for u_wrap = 1 (clamp); one row, NEAREST, no MIP; RGBA: the colour table c(f) in linear RGB premultiplied by alpha, and alpha
 uniform sampler2D u_tableMip;  // @table u: the driver value f in table periods, texel i centred at f = (i + 0.5)/n with n = width (REPEAT for u_wrap = 0, modulo; CLAMP_TO_EDGE for u_wrap = 1, clamp); one row; MIP level L: box averages of 2^L entries (Hart §3.3.1), read at lod = log2(filter width in table periods x n); RGBA: the colour table in linear RGB premultiplied by alpha, and alpha
 uniform sampler2D u_tableSat;  // @table one row of n + 3 texels, n the colour table's size: texels 0..n hold the summed-area table S[i] = clut[0] + ... + clut[i-1] (S[0] = 0; sums of the premultiplied linear RGBA entries), texels n+1 and n+2 hold clut[0] and clut[n-1]; read LINEAR at u = (x + 0.5)/(n + 3) for x = n f texels of the driver f, which gives the exact integral of the table over [0, x] (Hart eqs. 13-15); u_wrap: 0 modulo (the table repeats), 1 clamp (the edge entries extend it); no MIP
-uniform sampler2D u_tableGaussian;  // @table the preconvolved colour map C̄(μ, σ) = [clut * N(0, σ²)](μ) of Heitz et al. 2014 eq. 9 with u_gaussianRange = (mu_lo, mu_hi, sigma_max); u: the mean μ of the driver f over the pixel footprint, in table periods: u = fract(μ) for u_wrap = 0 (modulo: one period, REPEAT, u_gaussianRange.xy = (0, 1)) or (μ - mu_lo)/(mu_hi - mu_lo) for u_wrap = 1 (clamp: CLAMP_TO_EDGE, the edge columns beyond), texel i at μ = mu_lo + (i + 0.5)(mu_hi - mu_lo)/width; v: the standard deviation σ of f over the footprint, row j at σ = sigma_max j/(height - 1) (read at v = (σ/sigma_max (height - 1) + 0.5)/height; σ > sigma_max reads the last row; row 0 is the table itself); RGBA: the colour table convolved with N(0, σ²) at μ, in linear RGB premultiplied by alpha, and alpha; LINEAR, no MIP
+uniform sampler2D u_tableGaussianBox;  // @table the preconvolved colour map C̄(μ, σ) = [clut * N(0, σ²)](μ) of Heitz et al. 2014 eq. 9, its rows integrated over μ for box-filtered reads (colormap/gaussian.py, PreconvolvedMap.box_data) with u_gaussianRange = (mu_lo, mu_hi, sigma_max) and n μ texels over [mu_lo, mu_hi]: 3n + 1 columns, column c holds S(c - n), the sum of C̄(μ, σ) over the μ texels between mu_lo and mu_lo + (c - n)(mu_hi - mu_lo)/n (negative below mu_lo), over three copies of the range: the table's periods for u_wrap = 0 (modulo), its edge columns extended for u_wrap = 1 (clamp); read LINEAR at u = (c + 0.5)/(3n + 1); v: the standard deviation σ of f over the footprint, row j at σ = sigma_max j/(height - 1) (read at v = (σ/sigma_max (height - 1) + 0.5)/height; σ > sigma_max reads the last row; row 0 integrates the table itself); RGBA: sums of linear premultiplied RGBA and alpha; CLAMP_TO_EDGE, no MIP
 uniform vec3 u_gaussianRange;
 uniform int u_wrap;
 uniform float u_quantStep;
@@ -48,9 +49,8 @@ void main() {
     vec4 stats = pt_driverGaussian(s, dsdx, dsdy);
     float major = max(abs(stats.y), abs(stats.z));
     float minor = min(abs(stats.y), abs(stats.z));
-    float sigma = sqrt(major * major / 48.0 + minor * minor / 12.0 + stats.w);
-    albedo = 0.5 * (cm_gaussian(u_tableGaussian, stats.x - 0.25 * major, sigma, u_wrap, u_gaussianRange)
-                  + cm_gaussian(u_tableGaussian, stats.x + 0.25 * major, sigma, u_wrap, u_gaussianRange));
+    albedo = cm_gaussianBox(u_tableGaussianBox, stats.x, major, sqrt(minor * minor / 12.0 + stats.w), u_wrap,
+                            u_gaussianRange);
 #elif defined(MODE_GAUSSIAN_SIGMA)
     vec4 stats = pt_driverGaussian(s, dsdx, dsdy);
     o_colour = vec4(sqrt((stats.y * stats.y + stats.z * stats.z) / 12.0), sqrt(stats.w), 0.0, 1.0);

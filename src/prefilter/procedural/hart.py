@@ -65,13 +65,13 @@ class NoiseTerm:
 @dataclass
 class HartResources:
     table: TableTextures
-    gaussian: moderngl.Texture
+    gaussian_box: moderngl.Texture  # the preconvolved map, its rows integrated over μ (box-filtered reads)
     gaussian_range: tuple[float, float, float]  # (μ lo, μ hi, σ max) of the preconvolved map
     solid_extent: float  # max |s| over the mesh's bounding box (scale of the §4.3 quantisation)
 
     def release(self) -> None:
         self.table.release()
-        self.gaussian.release()
+        self.gaussian_box.release()
 
 
 @dataclass
@@ -119,7 +119,10 @@ class HartMaterial:
         )
         extent = float(np.abs(corners @ self.solid_from_object.T)[:, :3].max())
         return HartResources(
-            table.upload(ctx), gaussian.upload(ctx), (*gaussian.mu_range, gaussian.sigma_max), extent
+            table.upload(ctx),
+            gaussian.upload_box(ctx),
+            (*gaussian.mu_range, gaussian.sigma_max),
+            extent,
         )
 
     def release(self, resources: HartResources) -> None:
@@ -133,7 +136,7 @@ class HartMaterial:
                 "u_tablePoint": textures.point,
                 "u_tableMip": textures.mip,
                 "u_tableSat": textures.sat,
-                "u_tableGaussian": resources.gaussian,
+                "u_tableGaussianBox": resources.gaussian_box,
             },
         )
         bits = options.quant_bits  # Hart §4.3: B bits over the object's solid-coordinate extent
