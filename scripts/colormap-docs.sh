@@ -10,3 +10,6 @@ for preset in noise-plane seascape marble-cube terrain-contours terrain-data; do
   cp "out/docs/$preset/flip.png" "docs/images/colormaps/$preset-flip.png"
 done
 .venv/bin/prefilter render seascape --mode gaussian-sigma -o docs/images/colormaps/seascape-sigma.png
+.venv/bin/prefilter bench noise-plane terrain-contours terrain-data --json out/docs/bench-colormaps.json \
+  --plots out/docs/bench | tee out/docs/bench-colormaps.txt
+cp out/docs/bench/error-vs-distance.png docs/images/colormaps/error-vs-distance.png
