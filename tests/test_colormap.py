@@ -346,6 +346,28 @@ def test_cm_mip_is_exact_on_aligned_power_of_two_boxes(uploaded, wrap, target):
     np.testing.assert_allclose(got, table.box_average(f, w), rtol=0, atol=1e-5)  # measured: 3e-8
 
 
+@pytest.mark.parametrize("target", TARGETS)
+@pytest.mark.parametrize("wrap", ["modulo", "clamp"])
+def test_cm_mip_trilinear_equals_the_texture_units_filter(uploaded, wrap, target):
+    """cm_mipTrilinear (texelFetch) against the driver's own LINEAR_MIPMAP_LINEAR textureLod."""
+    _, textures = uploaded["random", wrap]
+    rng = np.random.default_rng(RNG_SEED + 9)
+    u, lod = _f32(rng.uniform(-2.0, 3.0, 2000), rng.uniform(0.0, np.log2(N) + 1.5, 2000))
+    if wrap == "clamp":
+        u = np.clip(u, 0.0, 1.0)  # cm_mip only reads a clamp table inside [0, 1]
+    clamp = "true" if wrap == "clamp" else "false"
+    got = _eval(
+        f"cm_mipTrilinear(mip, u, lod, {float(N)}, {clamp})",
+        {"u": u, "lod": lod},
+        "mip",
+        textures.mip,
+        target,
+    )
+    unit = _eval("textureLod(mip, vec2(u, 0.5), lod)", {"u": u, "lod": lod}, "mip", textures.mip, target)
+    assert np.abs(got - unit).max() < 4e-3  # the texture unit rounds its weights (8 bits on llvmpipe)
+    assert np.median(np.abs(got - unit)) < 1e-3
+
+
 @pytest.mark.parametrize("wrap", ["modulo", "clamp"])
 def test_cm_mip_error_bound_on_a_smooth_table(uploaded, wrap):
     """|cm_mip - box| <= L (3.25 max(w, 1/n) + 0.5/n) for a table sampled from an L-Lipschitz g.

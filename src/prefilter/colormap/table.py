@@ -92,7 +92,7 @@ class TableTextures:
     point: n x 1 RGBA32F, NEAREST, no mips             -> cm_point (texelFetch)
     mip:   n x 1 RGBA32F, levels 0..log2(n) uploaded from `ColourTable.mip_levels()`,
            LINEAR_MIPMAP_LINEAR / LINEAR, repeat_x for modulo, clamp-to-edge for clamp
-                                                      -> cm_mip, cm_mip2 (textureLod)
+                                                      -> cm_mip, cm_mip2 (texelFetch, trilinear)
     sat:   (n+3) x 1 RGBA32F, LINEAR: texels 0..n hold the summed-area table S (leading zero), so the
            texture unit's linear filter at texel position x + 1/2 returns S(x), the exact integral of
            the piecewise-constant table over [0, x] texels; texels n+1 and n+2 hold clut[0] and clut[n-1]
