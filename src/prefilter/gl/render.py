@@ -32,6 +32,7 @@ from prefilter.scene import Light, Scene, SceneObject
 BASE_MODES = ("point", "naive")
 MAX_LIGHTS = 4  # SH_MAX_LIGHTS in glsl/common/shading.glsl
 REFERENCE = "reference"
+MIN_SAMPLE_MS = 20.0  # time_modes: the shortest timed batch
 
 FULLSCREEN_TRIANGLE_VERT = """
 void main() {
@@ -314,13 +315,21 @@ class Renderer:
         """Median wall-clock time of one frame per mode, in milliseconds.
 
         Modes are measured round-robin (`frames` rounds; each round draws every mode `batch` times and
-        ends with glFinish), so that drifts of the machine's load hit every mode alike. GL timer queries
-        are not used: on llvmpipe they return the time to queue commands, not to rasterise them
-        (measured: 0.02 ms for a frame that takes 3 ms of wall time).
+        ends with glFinish), so that drifts of the machine's load hit every mode alike. The batch grows
+        so that each sample lasts at least MIN_SAMPLE_MS: frames of a millisecond (the 256² zone plate)
+        varied by 10 % between two calls with a batch of 3. GL timer queries are not used: on llvmpipe
+        they return the time to queue commands, not to rasterise them (measured: 0.02 ms for a frame that
+        takes 3 ms of wall time).
         """
-        for mode in modes:  # compile and warm up
+        fastest = float("inf")
+        for mode in modes:  # compile and warm up, then one timed frame each
             self.draw(mode, t)
-        self.ctx.finish()
+            self.ctx.finish()
+            start = time.perf_counter()
+            self.draw(mode, t)
+            self.ctx.finish()
+            fastest = min(fastest, 1000.0 * (time.perf_counter() - start))
+        batch = max(batch, math.ceil(MIN_SAMPLE_MS / max(fastest, 1e-3)))
         samples: dict[str, list[float]] = {mode: [] for mode in modes}
         for _ in range(frames):
             for mode in modes:
