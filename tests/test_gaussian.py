@@ -4,6 +4,8 @@ Oracles: adaptive quadrature of the colour table against a Gaussian (SciPy), bru
 sampling of noise under footprints, and the closed form C̄ = C(μ) of a linear colour map.
 """
 
+import functools
+
 import numpy as np
 import pytest
 from scipy.integrate import quad
@@ -105,17 +107,34 @@ def _box_quadrature(table: ColourTable, mu: float, width: float, sigma: float) -
     return gaussian_average(table, mu + width * u, np.full(u.shape, sigma)).mean(axis=0)
 
 
+@functools.cache
+def _box_cases(wrap: str):
+    """Random (μ, w, σ) and the exact box-times-Gaussian mean of _table(wrap) at each (shared by targets)."""
+    table = _table(wrap)
+    baked = preconvolve(table)
+    rng = np.random.default_rng(21 if wrap == "modulo" else 22)
+    count = 300
+    mu = rng.uniform(-1.2, 2.2, count)
+    width = np.exp(rng.uniform(np.log(1e-3), np.log(2.0), count)) * rng.choice([-1.0, 1.0], count)
+    sigma = rng.uniform(0.0, 0.6 if wrap == "modulo" else 0.3, count)
+    lo, hi = baked.mu_range
+    texel = (hi - lo) / baked.data.shape[1]
+    exact = np.empty((count, 4))
+    for k in range(count):
+        w = max(abs(width[k]), texel)  # widths below one μ texel are widened to one
+        if wrap == "modulo" and w >= 1.0:
+            exact[k] = table.entries.mean(axis=0)  # Hart's rule: the whole period
+        else:
+            exact[k] = _box_quadrature(table, mu[k], w, sigma[k])
+    return table, baked, mu, width, sigma, exact
+
+
 @pytest.mark.parametrize("target", ["gl330", "es300"])
 @pytest.mark.parametrize("wrap", ["modulo", "clamp"])
 def test_cm_gaussian_box_equals_the_table_under_a_box_times_a_gaussian(wrap, target):
     """cm_gaussianBox = C * box(w) * N(0, σ²): against its NumPy twin and quadrature of the exact C̄."""
-    table = _table(wrap)
-    baked = preconvolve(table)
+    table, baked, mu, width, sigma, exact = _box_cases(wrap)
     texture = baked.upload_box(gl_context())
-    count = 300
-    mu = RNG.uniform(-1.2, 2.2, count)
-    width = np.exp(RNG.uniform(np.log(1e-3), np.log(2.0), count)) * RNG.choice([-1.0, 1.0], count)
-    sigma = RNG.uniform(0.0, 0.6 if wrap == "modulo" else 0.3, count)
     try:
         got = glsl_eval(
             f"cm_gaussianBox(box, mu, width, sigma, {table.wrap_code}, range)",
@@ -130,15 +149,6 @@ def test_cm_gaussian_box_equals_the_table_under_a_box_times_a_gaussian(wrap, tar
     finally:
         texture.release()
     np.testing.assert_allclose(got, baked.box_lookup(mu, width, sigma), atol=2e-3)  # GPU bilinear weights
-    lo, hi = baked.mu_range
-    texel = (hi - lo) / baked.data.shape[1]
-    exact = np.empty((count, 4))
-    for k in range(count):
-        w = max(abs(width[k]), texel)  # widths below one μ texel are widened to one
-        if wrap == "modulo" and w >= 1.0:
-            exact[k] = table.entries.mean(axis=0)  # Hart's rule: the whole period
-        else:
-            exact[k] = _box_quadrature(table, mu[k], w, sigma[k])
     err = np.abs(got - exact).max(axis=1)
     # the bake holds C̄ at 256 σ rows and 256 μ texels per period: interpolation error where C̄ has steps
     smooth = (sigma > 4.0 / table.n) | (np.abs(width) > 4.0 / table.n)

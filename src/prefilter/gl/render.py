@@ -32,7 +32,8 @@ from prefilter.scene import Light, Scene, SceneObject
 BASE_MODES = ("point", "naive")
 MAX_LIGHTS = 4  # SH_MAX_LIGHTS in glsl/common/shading.glsl
 REFERENCE = "reference"
-MIN_SAMPLE_MS = 20.0  # time_modes: the shortest timed batch
+MIN_SAMPLE_MS = 20.0  # time_modes: the shortest timed batch ...
+MAX_BATCH = 32  # ... in at most this many frames (tiny test images would otherwise draw hundreds)
 
 FULLSCREEN_TRIANGLE_VERT = """
 void main() {
@@ -329,7 +330,7 @@ class Renderer:
             self.draw(mode, t)
             self.ctx.finish()
             fastest = min(fastest, 1000.0 * (time.perf_counter() - start))
-        batch = max(batch, math.ceil(MIN_SAMPLE_MS / max(fastest, 1e-3)))
+        batch = max(batch, min(MAX_BATCH, math.ceil(MIN_SAMPLE_MS / max(fastest, 1e-3))))
         samples: dict[str, list[float]] = {mode: [] for mode in modes}
         for _ in range(frames):
             for mode in modes:
