@@ -49,6 +49,20 @@ def _quadrature(table: ColourTable, mu: float, sigma: float) -> np.ndarray:
     return out
 
 
+def _eval_map(expr, inputs, baked, texture, target="gl330"):
+    """Evaluate a colormap.glsl expression over `map` (a texture of the bake `baked`) and its `range`."""
+    return glsl_eval(
+        expr,
+        inputs,
+        4,
+        includes=("colormap/colormap.glsl",),
+        target=target,
+        prelude="uniform sampler2D map;\nuniform vec3 range;",
+        uniforms={"range": (*baked.mu_range, baked.sigma_max)},
+        textures={"map": texture},
+    )
+
+
 @pytest.mark.parametrize("wrap", ["modulo", "clamp"])
 def test_preconvolved_texels_equal_quadrature(wrap):
     table = _table(wrap)
@@ -80,15 +94,12 @@ def test_cm_gaussian_matches_the_bake_and_the_exact_convolution(wrap, target):
     try:
         mu = RNG.uniform(-1.2, 2.2, 3000)
         sigma = RNG.uniform(0.0, 1.2, 3000)
-        got = glsl_eval(
-            f"cm_gaussian(pre, mu, sigma, {table.wrap_code}, range)",
+        got = _eval_map(
+            f"cm_gaussian(map, mu, sigma, {table.wrap_code}, range)",
             {"mu": mu, "sigma": sigma},
-            4,
-            includes=("colormap/colormap.glsl",),
-            target=target,
-            prelude="uniform sampler2D pre;\nuniform vec3 range;",
-            uniforms={"range": (*baked.mu_range, baked.sigma_max)},
-            textures={"pre": texture},
+            baked,
+            texture,
+            target,
         )
     finally:
         texture.release()
@@ -136,15 +147,12 @@ def test_cm_gaussian_box_equals_the_table_under_a_box_times_a_gaussian(wrap, tar
     table, baked, mu, width, sigma, exact = _box_cases(wrap)
     texture = baked.upload_box(gl_context())
     try:
-        got = glsl_eval(
-            f"cm_gaussianBox(box, mu, width, sigma, {table.wrap_code}, range)",
+        got = _eval_map(
+            f"cm_gaussianBox(map, mu, width, sigma, {table.wrap_code}, range)",
             {"mu": mu, "width": width, "sigma": sigma},
-            4,
-            includes=("colormap/colormap.glsl",),
-            target=target,
-            prelude="uniform sampler2D box;\nuniform vec3 range;",
-            uniforms={"range": (*baked.mu_range, baked.sigma_max)},
-            textures={"box": texture},
+            baked,
+            texture,
+            target,
         )
     finally:
         texture.release()
@@ -167,15 +175,7 @@ def test_linear_colour_map_is_exact():
     try:
         sigma = RNG.uniform(2.0 / n, 0.08, 2000)
         mu = RNG.uniform(0.0, 1.0, 2000) * (1 - 10 * sigma) + 5 * sigma
-        got = glsl_eval(
-            "cm_gaussian(pre, mu, sigma, 1, range)",
-            {"mu": mu, "sigma": sigma},
-            4,
-            includes=("colormap/colormap.glsl",),
-            prelude="uniform sampler2D pre;\nuniform vec3 range;",
-            uniforms={"range": (*baked.mu_range, baked.sigma_max)},
-            textures={"pre": texture},
-        )
+        got = _eval_map("cm_gaussian(map, mu, sigma, 1, range)", {"mu": mu, "sigma": sigma}, baked, texture)
     finally:
         texture.release()
     np.testing.assert_allclose(got[:, 0], mu, atol=1e-3)
