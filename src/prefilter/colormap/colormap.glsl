@@ -25,9 +25,10 @@
 //        at lod = log2(width * n) (level L holds box averages of 2^L texels; cm_mipTrilinear does GL's
 //        LINEAR_MIPMAP_LINEAR filter by texelFetch, at a cost independent of the level). Approximate:
 //        a box of about the right width with a tent reconstruction; exact when width * n is a power of
-//        two and f sits on that level's texel centres. Clamp tables: the parts of the footprint beyond the ends are
-//        weighted by clut[0] / clut[n-1] and only the part inside [0, 1] is looked up (a coarse level
-//        alone would return the mean of the edge block, far from clut[n-1] when f is well beyond 1).
+//        two and f sits on that level's texel centres. Clamp tables: the parts of the footprint beyond
+//        the ends are weighted by clut[0] / clut[n-1] and only the part inside [0, 1] is looked up (a
+//        coarse level alone would return the mean of the edge block, far from clut[n-1] when f is well
+//        beyond 1).
 //   vec4 cm_sat(sampler2D sat, float f, float width, int wrapMode)   eqs. (13)-(15): the mean of the
 //        piecewise-constant table over [f - w/2, f + w/2] as a difference of S at the two ends (S is
 //        piecewise linear, so the texture unit's linear filter between integer entries is its exact
@@ -193,11 +194,14 @@ vec4 cm_sat2(sampler2D sat, float f, float wa, float wb, int wrapMode) {
 // pre: the bake of colormap/gaussian.py, C̄(μ, σ) = [C * N(0, σ²)](μ), μ along x, σ along y (texel j at
 // σ = sigmaMax j / (rows - 1)); range = (lo, hi, sigmaMax): μ spans [lo, hi] (one period (0, 1) for
 // modulo tables, whose texture repeats). σ beyond sigmaMax uses sigmaMax.
+// v of the σ row of a bake with `rows` rows up to sigmaMax (texel j at σ = sigmaMax j / (rows - 1)).
+float cm_gaussianRow(float sigma, float sigmaMax, int rows) {
+    return (clamp(sigma / sigmaMax, 0.0, 1.0) * float(rows - 1) + 0.5) / float(rows);
+}
+
 vec4 cm_gaussian(sampler2D pre, float mu, float sigma, int wrapMode, vec3 range) {
-    float rows = float(textureSize(pre, 0).y);
     float u = wrapMode == CM_CLAMP ? (mu - range.x) / (range.y - range.x) : mu - floor(mu);
-    float v = (clamp(sigma / range.z, 0.0, 1.0) * (rows - 1.0) + 0.5) / rows;
-    return textureLod(pre, vec2(u, v), 0.0);
+    return textureLod(pre, vec2(u, cm_gaussianRow(sigma, range.z, textureSize(pre, 0).y)), 0.0);
 }
 
 // Box-filtered preconvolved map: the mean of C̄(·, σ) over [μ − w/2, μ + w/2], i.e. the table convolved
@@ -211,7 +215,7 @@ vec4 cm_gaussianBox(sampler2D box, float mu, float width, float sigma, int wrapM
     ivec2 size = textureSize(box, 0);
     float columns = float(size.x);
     float n = (columns - 1.0) / 3.0;
-    float v = (clamp(sigma / range.z, 0.0, 1.0) * (float(size.y) - 1.0) + 0.5) / float(size.y);
+    float v = cm_gaussianRow(sigma, range.z, size.y);
     float x = (mu - range.x) / (range.y - range.x) * n;
     float w = max(abs(width) / (range.y - range.x) * n, 1.0);
     bool modulo = wrapMode != CM_CLAMP;

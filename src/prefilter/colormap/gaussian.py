@@ -64,14 +64,14 @@ class PreconvolvedMap:
         return self.sigma_max * np.arange(self.data.shape[0]) / (self.data.shape[0] - 1)
 
     def upload(self, ctx: moderngl.Context) -> moderngl.Texture:
-        n_sigma, n_mu, _ = self.data.shape
-        texture = ctx.texture(
-            (n_mu, n_sigma), 4, np.ascontiguousarray(self.data, np.float32).tobytes(), dtype="f4"
-        )
-        texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
-        texture.repeat_x = self.wrap == "modulo"
-        texture.repeat_y = False
-        return texture
+        return _linear_texture(ctx, self.data, repeat_x=self.wrap == "modulo")
+
+    def _sigma_rows(self, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The lower σ row of a bilinear read and the weight of the row above (σ clamped to sigma_max)."""
+        n_sigma = self.data.shape[0]
+        y = np.clip(np.asarray(sigma, np.float64) / self.sigma_max, 0.0, 1.0) * (n_sigma - 1)
+        y0 = np.minimum(np.floor(y).astype(int), n_sigma - 2)
+        return y0, (y - y0)[..., None]
 
     def box_data(self) -> np.ndarray:
         """The integrated rows for cm_gaussianBox (layout in the module docstring), float32."""
@@ -86,17 +86,11 @@ class PreconvolvedMap:
         return (s - s[:, n_mu : n_mu + 1]).astype(np.float32)  # S(0) = 0: the smallest float32 magnitudes
 
     def upload_box(self, ctx: moderngl.Context) -> moderngl.Texture:
-        data = self.box_data()
-        texture = ctx.texture(
-            (data.shape[1], data.shape[0]), 4, np.ascontiguousarray(data).tobytes(), dtype="f4"
-        )
-        texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
-        texture.repeat_x = texture.repeat_y = False
-        return texture
+        return _linear_texture(ctx, self.box_data(), repeat_x=False)
 
     def box_lookup(self, mu: np.ndarray, width: np.ndarray, sigma: np.ndarray) -> np.ndarray:
         """NumPy float64 twin of cm_gaussianBox over this bake (without the texture unit's rounding)."""
-        n_sigma, n_mu, _ = self.data.shape
+        n_mu = self.data.shape[1]
         lo, hi = self.mu_range
         box = self.box_data().astype(np.float64)
         x = (np.asarray(mu, np.float64) - lo) / (hi - lo) * n_mu
@@ -105,9 +99,7 @@ class PreconvolvedMap:
             x, w = x - n_mu * np.floor(x / n_mu), np.minimum(w, n_mu)
         a = np.clip(x - 0.5 * w, -n_mu, 2 * n_mu - 1)
         b = np.clip(x + 0.5 * w, -n_mu + 1, 2 * n_mu)
-        y = np.clip(np.asarray(sigma, np.float64) / self.sigma_max, 0.0, 1.0) * (n_sigma - 1)
-        y0 = np.minimum(np.floor(y).astype(int), n_sigma - 2)
-        ty = (y - y0)[..., None]
+        y0, ty = self._sigma_rows(sigma)
 
         def integral(at):  # S(at), bilinear like the texture
             col = at + n_mu
@@ -120,10 +112,9 @@ class PreconvolvedMap:
 
     def lookup(self, mu: np.ndarray, sigma: np.ndarray) -> np.ndarray:
         """NumPy twin of cm_gaussian (bilinear with the same half-texel remapping), for tests."""
-        n_sigma, n_mu, _ = self.data.shape
+        n_mu = self.data.shape[1]
         lo, hi = self.mu_range
         x = (np.asarray(mu, np.float64) - lo) / (hi - lo) * n_mu - 0.5
-        y = np.clip(np.asarray(sigma, np.float64) / self.sigma_max, 0.0, 1.0) * (n_sigma - 1)
         x0 = np.floor(x).astype(int)
         tx = x - x0
         if self.wrap == "modulo":
@@ -131,11 +122,20 @@ class PreconvolvedMap:
         else:
             xa, xb = np.clip(x0, 0, n_mu - 1), np.clip(x0 + 1, 0, n_mu - 1)
             tx = np.where(x < 0, 0.0, np.where(x > n_mu - 1, 1.0, tx))
-        y0 = np.minimum(np.floor(y).astype(int), n_sigma - 2)
-        ty = y - y0
+        y0, ty = self._sigma_rows(sigma)
         d = self.data.astype(np.float64)
         row = lambda j: (1 - tx)[..., None] * d[j, xa] + tx[..., None] * d[j, xb]  # noqa: E731
-        return (1 - ty)[..., None] * row(y0) + ty[..., None] * row(y0 + 1)
+        return (1 - ty) * row(y0) + ty * row(y0 + 1)
+
+
+def _linear_texture(ctx: moderngl.Context, data: np.ndarray, repeat_x: bool) -> moderngl.Texture:
+    """A (rows, columns, 4) float array as an RGBA32F texture, LINEAR, no MIP, clamped in y."""
+    rows, columns, _ = data.shape
+    texture = ctx.texture((columns, rows), 4, np.ascontiguousarray(data, np.float32).tobytes(), dtype="f4")
+    texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
+    texture.repeat_x = repeat_x
+    texture.repeat_y = False
+    return texture
 
 
 def gaussian_average(table: ColourTable, mu: np.ndarray, sigma: np.ndarray) -> np.ndarray:
