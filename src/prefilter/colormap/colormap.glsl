@@ -191,14 +191,14 @@ vec4 cm_sat2(sampler2D sat, float f, float wa, float wb, int wrapMode) {
 }
 
 // --- Gaussian-preconvolved colour map (Heitz et al. 2013/2014 §4.2, eq. 9) ---------------------------
-// pre: the bake of colormap/gaussian.py, C̄(μ, σ) = [C * N(0, σ²)](μ), μ along x, σ along y (texel j at
-// σ = sigmaMax j / (rows - 1)); range = (lo, hi, sigmaMax): μ spans [lo, hi] (one period (0, 1) for
-// modulo tables, whose texture repeats). σ beyond sigmaMax uses sigmaMax.
 // v of the σ row of a bake with `rows` rows up to sigmaMax (texel j at σ = sigmaMax j / (rows - 1)).
 float cm_gaussianRow(float sigma, float sigmaMax, int rows) {
     return (clamp(sigma / sigmaMax, 0.0, 1.0) * float(rows - 1) + 0.5) / float(rows);
 }
 
+// pre: the bake of colormap/gaussian.py, C̄(μ, σ) = [C * N(0, σ²)](μ), μ along x, σ along y (texel j at
+// σ = sigmaMax j / (rows - 1)); range = (lo, hi, sigmaMax): μ spans [lo, hi] (one period (0, 1) for
+// modulo tables, whose texture repeats). σ beyond sigmaMax uses sigmaMax.
 vec4 cm_gaussian(sampler2D pre, float mu, float sigma, int wrapMode, vec3 range) {
     float u = wrapMode == CM_CLAMP ? (mu - range.x) / (range.y - range.x) : mu - floor(mu);
     return textureLod(pre, vec2(u, cm_gaussianRow(sigma, range.z, textureSize(pre, 0).y)), 0.0);

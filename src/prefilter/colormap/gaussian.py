@@ -44,6 +44,7 @@ from scipy.special import ndtr
 
 from prefilter.bake_cache import cached
 from prefilter.colormap.table import ColourTable
+from prefilter.gl.textures import float_texture
 
 BAKE_VERSION = 1
 
@@ -64,7 +65,7 @@ class PreconvolvedMap:
         return self.sigma_max * np.arange(self.data.shape[0]) / (self.data.shape[0] - 1)
 
     def upload(self, ctx: moderngl.Context) -> moderngl.Texture:
-        return _linear_texture(ctx, self.data, repeat_x=self.wrap == "modulo")
+        return float_texture(ctx, self.data, repeat_x=self.wrap == "modulo")
 
     def _sigma_rows(self, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The lower σ row of a bilinear read and the weight of the row above (σ clamped to sigma_max)."""
@@ -86,7 +87,7 @@ class PreconvolvedMap:
         return (s - s[:, n_mu : n_mu + 1]).astype(np.float32)  # S(0) = 0: the smallest float32 magnitudes
 
     def upload_box(self, ctx: moderngl.Context) -> moderngl.Texture:
-        return _linear_texture(ctx, self.box_data(), repeat_x=False)
+        return float_texture(ctx, self.box_data())
 
     def box_lookup(self, mu: np.ndarray, width: np.ndarray, sigma: np.ndarray) -> np.ndarray:
         """NumPy float64 twin of cm_gaussianBox over this bake (without the texture unit's rounding)."""
@@ -126,16 +127,6 @@ class PreconvolvedMap:
         d = self.data.astype(np.float64)
         row = lambda j: (1 - tx)[..., None] * d[j, xa] + tx[..., None] * d[j, xb]  # noqa: E731
         return (1 - ty) * row(y0) + ty * row(y0 + 1)
-
-
-def _linear_texture(ctx: moderngl.Context, data: np.ndarray, repeat_x: bool) -> moderngl.Texture:
-    """A (rows, columns, 4) float array as an RGBA32F texture, LINEAR, no MIP, clamped in y."""
-    rows, columns, _ = data.shape
-    texture = ctx.texture((columns, rows), 4, np.ascontiguousarray(data, np.float32).tobytes(), dtype="f4")
-    texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
-    texture.repeat_x = repeat_x
-    texture.repeat_y = False
-    return texture
 
 
 def gaussian_average(table: ColourTable, mu: np.ndarray, sigma: np.ndarray) -> np.ndarray:

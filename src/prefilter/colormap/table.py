@@ -39,6 +39,7 @@ import moderngl
 import numpy as np
 
 from prefilter import PrefilterError
+from prefilter.gl.textures import float_texture
 from prefilter.images import srgb_to_linear
 
 WRAPS = ("modulo", "clamp")
@@ -239,9 +240,7 @@ class ColourTable:
             raise PrefilterError(
                 f"colour table of {n} entries is too large for this GL (max texture {limit})"
             )
-        point = ctx.texture((n, 1), 4, np.ascontiguousarray(self.entries).tobytes(), dtype="f4")
-        point.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        point.repeat_x = point.repeat_y = False
+        point = float_texture(ctx, self.entries, filter=moderngl.NEAREST)
 
         levels = self.mip_levels()
         mip = ctx.texture((n, 1), 4, levels[0].astype(np.float32).tobytes(), dtype="f4")
@@ -255,9 +254,7 @@ class ColourTable:
         sat_texels = np.concatenate([self.summed_area(), self.entries[:1], self.entries[-1:]]).astype(
             np.float32
         )
-        sat = ctx.texture((n + 3, 1), 4, sat_texels.tobytes(), dtype="f4")
-        sat.filter = (moderngl.LINEAR, moderngl.LINEAR)
-        sat.repeat_x = sat.repeat_y = False
+        sat = float_texture(ctx, sat_texels)
         return TableTextures(point, mip, sat, n, self.wrap_code)
 
     # -- float64 oracles ------------------------------------------------------------------------------

@@ -39,6 +39,7 @@ import numpy as np
 from scipy.special import log_ndtr
 
 from prefilter.bake_cache import cached
+from prefilter.gl.textures import float_texture
 
 BAKE_VERSION = 1
 L_MAX = 1e4
@@ -98,12 +99,7 @@ class HeightFilteringTable:
 
     def upload(self, ctx: moderngl.Context) -> moderngl.Texture:
         """An n x 1 RG32F texture, LINEAR, clamp-to-edge (for ms_heightFiltering)."""
-        n = self.data.shape[0]
-        texture = ctx.texture((n, 1), 2, np.ascontiguousarray(self.data, np.float32).tobytes(), dtype="f4")
-        texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
-        texture.repeat_x = False
-        texture.repeat_y = False
-        return texture
+        return float_texture(ctx, self.data)
 
 
 def height_filtering_table(n: int = TABLE_SIZE, l_max: float = L_MAX) -> HeightFilteringTable:
