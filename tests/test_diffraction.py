@@ -333,7 +333,7 @@ def test_compare_adds_brdf_slices_against_the_direct_reference_for_gratings(tmp_
     scene = _scene(
         'coherence_um = 3.0\nfast_table = [64, 64, 16]\n[object.material.generator]\nname = "blazed"'
     )
-    out = write_comparison(compare_scene(scene, spp=4, frames=1, time_reference=False), tmp_path / "cmp")
+    out = write_comparison(compare_scene(scene, spp=4, frames=1), tmp_path / "cmp")
     report = (out / "report.md").read_text()
     assert (out / "brdf-slices.png").stat().st_size > 10_000
     assert "## BRDF slices against the direct reference" in report
