@@ -218,3 +218,60 @@ def test_bad_microsurface_scenes_name_the_key(tmp_path, material, key):
     )
     with pytest.raises(SceneError, match=re.escape(f"bad.toml: object[0].material.{key}: ")):
         load_scene(path)
+
+
+# --- Smith's masking on fractals (microsurface/fractal_masking.py) -------------------------------------
+
+
+def test_effective_masking_slopes_match_ray_casting_on_a_fractal_left_out_of_the_fit():
+    """Mean visible height of a fractal that G was not fitted to (gain 0.6, five octaves), ray cast, against
+    Smith with the effective slope variance, and against plain Smith, which overestimates it."""
+    from prefilter.microsurface.fractal_masking import (
+        effective_slope_variance,
+        smith_visible_height_mean,
+        visible_height_mean,
+    )
+
+    fractal = Fractal(octaves=5, amplitude=0.16, frequency=2.0, gain=0.6)
+    for elevation in (6.0, 12.0):
+        real = visible_height_mean(fractal, elevation, rays=2000, seed=5)
+        model = smith_visible_height_mean(fractal, elevation, effective_slope_variance(fractal))
+        smith = smith_visible_height_mean(fractal, elevation, fractal.slope_variance())
+        assert abs(model - real) < 0.05, (elevation, real, model)
+        assert smith - real > 0.1, (elevation, real, smith)
+
+
+def test_shader_masking_slopes_equal_the_numpy_twin_and_its_table():
+    """ms_setWeights' effective slope variances (whole surface; coarse part over a footprint) against
+    fractal_masking.effective_slope_variance, and heightfield.glsl's MS_MASKING_WEIGHT against G."""
+    import re
+    from pathlib import Path
+
+    import prefilter
+    from prefilter.microsurface.fractal_masking import G, effective_slope_variance
+    from prefilter.procedural.noise_stats import split_fit, split_fits
+
+    text = (Path(prefilter.__file__).parent / "microsurface/heightfield.glsl").read_text()
+    table = re.search(r"MS_MASKING_WEIGHT\[8\] = float\[8\]\(([^)]*)\)", text).group(1)
+    np.testing.assert_allclose([float(v) for v in table.split(",")], G, atol=5e-4)
+    footprint = 0.3  # object units on the plane: octave k spans 0.6 * 2^k lattice cells
+    got = glsl_eval(
+        "masking(p)",
+        {"p": np.zeros((1, 3))},
+        4,
+        includes=INCLUDES,
+        uniforms={
+            **_uniforms(),
+            "dx": np.array([footprint, 0.0, 0.0]),
+            "dy": np.array([0.0, 0.0, footprint]),
+        },
+        prelude="uniform vec3 dx, dy;\nvec4 masking(vec3 p) {\n"
+        "  ms_setWeights(vec3(0.0), vec3(0.0), true); float whole = ms_maskingSlopeVariance;\n"
+        "  ms_setWeights(dx, dy, false);\n"
+        "  return vec4(whole, ms_maskingSlopeVariance, ms_coarseMaskingSlopeVariance, 0.0); }",
+    )[0]
+    rho = footprint * FRACTAL.frequencies  # the footprint's side in each octave's lattice cells
+    beta = split_fit(split_fits(), rho, rho)[0]  # the coarse surface's weights (ms_meanFraction)
+    assert ((beta > 0.05) & (beta < 0.95)).sum() >= 3  # octaves partly coarse, partly micro
+    np.testing.assert_allclose(got[:2], effective_slope_variance(FRACTAL), rtol=1e-4)
+    np.testing.assert_allclose(got[2], effective_slope_variance(FRACTAL, beta), rtol=2e-3)

@@ -41,6 +41,10 @@ float ms_heightVariance;   // σ_h² of the unresolved octaves
 float ms_slopeVariance;    // per tangent axis: Σ = ms_slopeVariance · I
 float ms_coarseHeightVariance;  // the same of the coarse (rendered) surface: Σ w² a² Var n
 float ms_coarseSlopeVariance;
+// Smith's Λ for a fractal: the slope variance it sees, each octave's slopes weighted by
+// MS_MASKING_WEIGHT at log2(f_k / f_0) (microsurface/fractal_masking.py: G, fitted to ray casts)
+float ms_maskingSlopeVariance;        // of the whole surface
+float ms_coarseMaskingSlopeVariance;  // of the coarse (rendered) surface
 float ms_textureVariance;  // σ² of the unresolved texture octaves
 float ms_heightBound;      // max |h_c|: the slab the marcher searches
 float ms_slopeBound;       // step-size bound of |∇h_c|
@@ -62,6 +66,15 @@ vec4 ms_transfer(float mu, float sigma) {
 }
 #endif
 
+const float MS_MASKING_WEIGHT[8] = float[8](1.110, 0.935, 0.758, 0.470, 0.204, 0.204, 0.204, 0.204);
+
+// g(k), k = log2(f_k / f_0) octaves below the coarsest, linear between the table's integers.
+float ms_maskingWeight(float k) {
+    float x = clamp(k, 0.0, 7.0);
+    int i = min(int(x), 6);
+    return mix(MS_MASKING_WEIGHT[i], MS_MASKING_WEIGHT[i + 1], x - float(i));
+}
+
 // β of an octave for a box footprint with axes jx, jy in its lattice units (noise_stats.glsl fit).
 float ms_meanFraction(vec3 jx, vec3 jy) {
     vec2 l = 0.5 * log2(max(vec2(dot(jx, jx), dot(jy, jy)), vec2(1e-30)));
@@ -75,6 +88,8 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
     ms_slopeVariance = 0.0;
     ms_coarseHeightVariance = 0.0;
     ms_coarseSlopeVariance = 0.0;
+    ms_maskingSlopeVariance = 0.0;
+    ms_coarseMaskingSlopeVariance = 0.0;
     ms_textureVariance = 0.0;
     ms_heightBound = 0.0;
     ms_slopeBound = 0.0;
@@ -96,6 +111,10 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
             ms_slopeVariance += residual * af.y * af.y * MS_GRADIENT_VARIANCE;
             ms_coarseHeightVariance += w * w * af.x * af.x * MS_NOISE_VARIANCE;
             ms_coarseSlopeVariance += w * w * af.x * af.x * af.y * af.y * MS_GRADIENT_VARIANCE;
+            float masking = ms_maskingWeight(log2(af.y / ms_octave[0].y)) * af.x * af.x * af.y * af.y
+                          * MS_GRADIENT_VARIANCE;
+            ms_maskingSlopeVariance += masking;
+            ms_coarseMaskingSlopeVariance += w * w * masking;
             ms_heightBound += w * af.x * MS_NOISE_BOUND;
             ms_slopeBound += w * af.x * af.y * MS_SLOPE_BOUND;
         } else {

@@ -8,8 +8,9 @@
 //   MODE_TEXTURE_FILTER  the coarse surface, colours filtered view-independently against the unresolved
 //                        statistics (p_h, p_s: §4's filter applied to heights and slopes, no visibility)
 //   MODE_MARCH_STEPS     diagnostic: march steps of the point mode's primary and shadow rays / 256 (red)
-//   MODE_SURFACE_FILTER  Heitz et al.: Λ_o, Λ_i (eq. 2 ff.), V̄ (eq. 12), D_h (eqs. 13–17, exact table), the
-//                        visible-slope distribution D_s (§5.2), Lambert averaged over D_s, combinations (§6)
+//   MODE_SURFACE_FILTER  Heitz et al.: Λ_o, Λ_i (eq. 2 ff.; of the fractal's effective slopes, beyond the
+//                        paper: microsurface/fractal_masking.py), V̄ (eq. 12), D_h (eqs. 13–17, exact table),
+//                        the visible-slope distribution D_s (§5.2), Lambert averaged over D_s, combinations (§6)
 // Lighting: directional lights sh_lightDirection/Colour (world) with shadows, plus unshadowed ambient;
 // or, with MS_IRRADIANCE, an environment's irradiance in 9 SH coefficients (§5.3) and nothing else.
 // Colour maps (defines MS_HEIGHT_MAP, MS_SLOPE_MAP, MS_TEXTURE_MAP): argument = scale·x + offset with
@@ -207,7 +208,11 @@ void main() {
     coarseCov *= transferMoments.w;
     coarseVariance *= transferMoments.z * transferMoments.z;
 #endif
-    vec3 totalCov = slopeCov + coarseCov;
+    // Λ sees the fractal's effective slopes (fractal_masking.py): the same covariances scaled by the
+    // ratio of the effective to the actual slope variance of the driver, whole and coarse.
+    vec3 totalCov = (slopeCov + coarseCov) * ms_maskingSlopeVariance
+                  / max(ms_slopeVariance + ms_coarseSlopeVariance, 1e-30);
+    coarseCov *= ms_coarseMaskingSlopeVariance / max(ms_coarseSlopeVariance, 1e-30);
     float sigmaC = sqrt(coarseVariance);
     float sigmaT = sqrt(heightVariance + coarseVariance);
     float lambdaOT = ms_lambda(wo, totalCov);
