@@ -243,17 +243,14 @@ def test_effective_masking_slopes_match_ray_casting_on_a_fractal_left_out_of_the
 
 def test_shader_masking_slopes_equal_the_numpy_twin_and_its_table():
     """ms_setWeights' effective slope variances (whole surface; coarse part over a footprint) against
-    fractal_masking.effective_slope_variance, and heightfield.glsl's MS_MASKING_WEIGHT against G."""
-    import re
-    from pathlib import Path
-
-    import prefilter
-    from prefilter.microsurface.fractal_masking import G, effective_slope_variance
+    fractal_masking.effective_slope_variance, and the octaves' masking uniform against G (lacunarity 2:
+    octave k is k octaves below the coarsest)."""
+    from prefilter.microsurface.fractal_masking import G, effective_slope_variance, masking_uniform
     from prefilter.procedural.noise_stats import split_fit, split_fits
 
-    text = (Path(prefilter.__file__).parent / "microsurface/heightfield.glsl").read_text()
-    table = re.search(r"MS_MASKING_WEIGHT\[8\] = float\[8\]\(([^)]*)\)", text).group(1)
-    np.testing.assert_allclose([float(v) for v in table.split(",")], G, atol=5e-4)
+    uniform = masking_uniform(FRACTAL)
+    np.testing.assert_allclose(uniform[: FRACTAL.octaves], G[: FRACTAL.octaves], atol=5e-4)
+    assert not uniform[FRACTAL.octaves :].any()
     footprint = 0.3  # object units on the plane: octave k spans 0.6 * 2^k lattice cells
     got = glsl_eval(
         "masking(p)",

@@ -19,9 +19,10 @@ Smith's mean visible height equal the ray-cast one (`calibrate`): fractals of 1-
 gains 0.35, 0.5 and 0.7, view elevations 3-20°. The ratio Σ_eff/Σ that matches each case does not
 depend on the elevation (within the ray casts' noise), and one G fits all gains. Fine octaves keep
 about 0.2 of their slopes. tests/test_microsurface.py checks the model against a fresh ray cast of a
-fractal that was not fitted (gain 0.6, 5 octaves). The shader's copy is MS_MASKING_WEIGHT in
-heightfield.glsl; for non-integer frequency ratios it interpolates G linearly. Limits: measured for
-Perlin fBm with lacunarity 2 only, and for masking only; shadowing (Λ_i) uses the same Σ_eff.
+fractal that was not fitted (gain 0.6, 5 octaves). The shader reads g(log2(f_k / f_0)) per octave
+(`masking_uniform`, ms_octaveMasking in heightfield.glsl), G interpolated linearly between its entries.
+Limits: measured for Perlin fBm with lacunarity 2 only, and for masking only; shadowing (Λ_i) uses the
+same Σ_eff.
 
 `visible_height_mean` is the oracle: rays at a given elevation cross the macro plane at uniform points
 (the projected-area weighting of pixels), are marched in steps of 0.12 of the finest lattice cell and
@@ -36,7 +37,9 @@ import sys
 
 import numpy as np
 
-from prefilter.microsurface.heightfield import Fractal
+from prefilter.microsurface.height_filtering import height_filtering_moments
+from prefilter.microsurface.heightfield import MAX_OCTAVES, Fractal
+from prefilter.microsurface.smith import lambda_smith
 
 # g(k) for k = log2(f_k / f_0) = 0, 1, ..., 7 (fitted by `calibrate`; k >= 4 share one weight)
 G = np.array([1.110, 0.935, 0.758, 0.470, 0.204, 0.204, 0.204, 0.204])
@@ -62,6 +65,13 @@ def masking_weights(fractal: Fractal, table: np.ndarray = G) -> np.ndarray:
     """g(log2(f_k / f_0)) for each octave of the fractal."""
     k = np.log2(fractal.frequencies / fractal.frequencies[0])
     return np.interp(k, np.arange(len(table)), table)
+
+
+def masking_uniform(fractal: Fractal) -> np.ndarray:
+    """ms_octaveMasking: the octaves' masking weights, padded with zeros to MAX_OCTAVES (float32)."""
+    weights = np.zeros(MAX_OCTAVES, np.float32)
+    weights[: fractal.octaves] = masking_weights(fractal)
+    return weights
 
 
 def effective_slope_variance(
@@ -106,9 +116,6 @@ def visible_height_mean(fractal: Fractal, elevation_deg: float, rays: int = 6000
 
 def smith_visible_height_mean(fractal: Fractal, elevation_deg: float, slope_variance: float) -> float:
     """Smith's mean visible height (μ_d of D_h, Λ_o only) in units of σ_h for a per-axis slope variance."""
-    from prefilter.microsurface.height_filtering import height_filtering_moments
-    from prefilter.microsurface.smith import lambda_smith
-
     e = np.radians(elevation_deg)
     lam = lambda_smith(np.array([np.cos(e), 0.0, np.sin(e)]), np.array([slope_variance, 0.0, slope_variance]))
     return float(height_filtering_moments(np.asarray(lam))[0])

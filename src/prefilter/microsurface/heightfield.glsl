@@ -31,6 +31,7 @@
 
 uniform vec2 ms_octave[2 * MS_MAX_OCTAVES];
 uniform vec3 ms_octaveOffset[2 * MS_MAX_OCTAVES];
+uniform float ms_octaveMasking[MS_MAX_OCTAVES];  // the height octaves' masking weights (fractal_masking.py)
 uniform int ms_heightOctaves;
 uniform int ms_textureOctaves;
 uniform mat3 ms_latticeFromObject;
@@ -41,8 +42,8 @@ float ms_heightVariance;   // σ_h² of the unresolved octaves
 float ms_slopeVariance;    // per tangent axis: Σ = ms_slopeVariance · I
 float ms_coarseHeightVariance;  // the same of the coarse (rendered) surface: Σ w² a² Var n
 float ms_coarseSlopeVariance;
-// Smith's Λ for a fractal: the slope variance it sees, each octave's slopes weighted by
-// MS_MASKING_WEIGHT at log2(f_k / f_0) (microsurface/fractal_masking.py: G, fitted to ray casts)
+// Smith's Λ for a fractal: the slope variance it sees, octave k's slopes weighted by ms_octaveMasking[k]
+// = g(log2(f_k / f_0)) (microsurface/fractal_masking.py: G, fitted to ray casts)
 float ms_maskingSlopeVariance;        // of the whole surface
 float ms_coarseMaskingSlopeVariance;  // of the coarse (rendered) surface
 float ms_textureVariance;  // σ² of the unresolved texture octaves
@@ -65,15 +66,6 @@ vec4 ms_transfer(float mu, float sigma) {
     return ms_transferMoments(u_transferTable, mu, sigma, u_transferRange) * vec4(s, s * s, s, s * s);
 }
 #endif
-
-const float MS_MASKING_WEIGHT[8] = float[8](1.110, 0.935, 0.758, 0.470, 0.204, 0.204, 0.204, 0.204);
-
-// g(k), k = log2(f_k / f_0) octaves below the coarsest, linear between the table's integers.
-float ms_maskingWeight(float k) {
-    float x = clamp(k, 0.0, 7.0);
-    int i = min(int(x), 6);
-    return mix(MS_MASKING_WEIGHT[i], MS_MASKING_WEIGHT[i + 1], x - float(i));
-}
 
 // β of an octave for a box footprint with axes jx, jy in its lattice units (noise_stats.glsl fit).
 float ms_meanFraction(vec3 jx, vec3 jy) {
@@ -111,8 +103,7 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
             ms_slopeVariance += residual * af.y * af.y * MS_GRADIENT_VARIANCE;
             ms_coarseHeightVariance += w * w * af.x * af.x * MS_NOISE_VARIANCE;
             ms_coarseSlopeVariance += w * w * af.x * af.x * af.y * af.y * MS_GRADIENT_VARIANCE;
-            float masking = ms_maskingWeight(log2(af.y / ms_octave[0].y)) * af.x * af.x * af.y * af.y
-                          * MS_GRADIENT_VARIANCE;
+            float masking = ms_octaveMasking[k] * af.x * af.x * af.y * af.y * MS_GRADIENT_VARIANCE;
             ms_maskingSlopeVariance += masking;
             ms_coarseMaskingSlopeVariance += w * w * masking;
             ms_heightBound += w * af.x * MS_NOISE_BOUND;

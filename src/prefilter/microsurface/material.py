@@ -34,6 +34,7 @@ import numpy as np
 from prefilter.colormap.gaussian import parse_preconvolve_options, preconvolve
 from prefilter.colormap.table import ColourTable, parse_colour_table
 from prefilter.gl.uniforms import bind_samplers, set_uniforms
+from prefilter.microsurface.fractal_masking import masking_uniform
 from prefilter.microsurface.heightfield import LATTICE_FROM_OBJECT, MAX_OCTAVES, Fractal
 from prefilter.scene import Reader, register_material
 
@@ -155,6 +156,7 @@ class MicrosurfaceMaterial:
         return {
             "ms_octave": pairs,
             "ms_octaveOffset": offsets,
+            "ms_octaveMasking": masking_uniform(self.height),
             "ms_heightOctaves": self.height.octaves,
             "ms_textureOctaves": self.texture.octaves if self.texture else 0,
             "ms_latticeFromObject": LATTICE_FROM_OBJECT.T,
