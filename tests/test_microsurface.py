@@ -189,6 +189,37 @@ def test_surface_filter_is_closest_to_the_ray_marched_reference_far_away():
     assert flip["surface-filter"] < flip["texture-filter"] < flip["naive"], flip
 
 
+def test_relief_footprint_brings_the_grazing_terrain_closer_to_the_ray_marched_reference():
+    """At a grazing view the relief stands out of the pixels: splitting the octaves over the footprint on
+    the facets that face the eye (ms_reliefFootprint) keeps their silhouettes and shadows as geometry,
+    and every filtered mode is closer to the supersampled explicit microgeometry than with the macro
+    footprint (at 256 x 192 and 64 spp: surface-filter 0.085 -> 0.061)."""
+    from dataclasses import replace
+
+    from prefilter.gl.render import Renderer, composite, coverage_mask
+    from prefilter.metrics import compare
+    from prefilter.scene import resolve_scene
+
+    base = resolve_scene("micro-heights-grazing")
+    flip, ref, mask = {}, None, None
+    for footprint in ("macro", "relief"):
+        objects = [replace(o, material=replace(o.material, footprint=footprint)) for o in base.objects]
+        scene = replace(base, objects=objects)
+        renderer = Renderer(scene, (128, 96))
+        try:
+            if ref is None:
+                ref = renderer.reference(16)
+                mask = coverage_mask(ref)
+            for mode in ("naive", "texture-filter", "surface-filter"):
+                image = composite(renderer.render(mode), scene.background)
+                flip[footprint, mode] = compare(image, composite(ref, scene.background), mask)["flip"]
+        finally:
+            renderer.release()
+    for mode in ("naive", "texture-filter", "surface-filter"):
+        assert flip["relief", mode] < flip["macro", mode], flip
+    assert flip["relief", "surface-filter"] < 0.9 * flip["macro", "surface-filter"], flip
+
+
 TABLE = '[object.material.height_colour.colour_table]\nstops = [[0, "#000000"]]\n'
 HEIGHT = "[object.material.height]\n"
 
@@ -204,6 +235,7 @@ HEIGHT = "[object.material.height]\n"
             "irradiance.environment",
         ),
         (HEIGHT + '[object.material.transfer]\nfunction = "lava"\n' + TABLE, "transfer.function"),
+        ('footprint = "screen"\n' + HEIGHT + TABLE, "footprint"),
     ],
 )
 def test_bad_microsurface_scenes_name_the_key(tmp_path, material, key):

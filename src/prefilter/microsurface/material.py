@@ -15,6 +15,9 @@ Scene TOML (under [object.material], type = "microsurface"):
   kappa = [κ₀, κ₁, κ₂]  default 1 for each map present
   slope_layer = "add" | "over";  slope_direction = [dx, dy] (tangent frame: +x, −z on the plane)
   height_moments = "table" | "log-fit"   D_h's moments: exact quadrature table, or eqs. (16)/(17)
+  footprint = "relief" | "macro"   the pixel footprint that splits the octaves into geometry and
+      statistics: on the visible relief, foreshortened by facets facing a grazing eye (heightfield.glsl
+      ms_reliefFootprint), or on the macro surface
   [height_colour], [slope_colour], [texture_colour]: scale = 1, offset = 0 (argument = scale·x + offset),
       [....colour_table] as for Hart's model, [....preconvolved] as for the gaussian mode
   [transfer]         function = "moss" | "sponge" | "linear" (microsurface/transfer.py), its parameters,
@@ -64,6 +67,7 @@ class MicrosurfaceMaterial:
     slope_over: bool = False
     slope_direction: tuple[float, float] = (1.0, 0.0)
     height_moments: str = "table"
+    footprint: str = "relief"
     transfer: object | None = None  # microsurface.transfer.TransferFunction
     transfer_scale: float = 1.0  # h = transfer_scale · g(f)
     environment: Path | None = None
@@ -90,6 +94,8 @@ class MicrosurfaceMaterial:
             defines["MS_SPHERE"] = True
         if self.height_moments == "log-fit":
             defines["MS_HEIGHT_FIT"] = True
+        if self.footprint == "macro":
+            defines["MS_MACRO_FOOTPRINT"] = True
         if self.transfer is not None:
             defines["MS_TRANSFER"] = True
         if self.environment is not None:
@@ -236,6 +242,7 @@ def parse_microsurface(r: Reader, base_dir: Path) -> MicrosurfaceMaterial:
     if np.linalg.norm(direction) == 0:
         raise r.fail("slope_direction", "must be non-zero")
     moments = r.string("height_moments", "table", choices=("table", "log-fit"))
+    footprint = r.string("footprint", "relief", choices=("relief", "macro"))
     transfer, transfer_scale = None, 1.0
     xr = r.child("transfer")
     if xr is not None:
@@ -269,6 +276,7 @@ def parse_microsurface(r: Reader, base_dir: Path) -> MicrosurfaceMaterial:
         slope_over,
         (float(direction[0]), float(direction[1])),
         moments,
+        footprint,
         transfer,
         transfer_scale,
         environment,

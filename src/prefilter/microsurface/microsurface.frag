@@ -99,12 +99,13 @@ void main() {
     vec3 p0 = v_solid;
     vec3 dpdx = dFdx(p0);
     vec3 dpdy = dFdy(p0);
+    vec3 d = u_eyeObject.w > 0.5 ? normalize(p0 - u_eyeObject.xyz) : normalize(u_eyeObject.xyz);
 #if defined(MODE_POINT) || defined(MODE_MARCH_STEPS)
     ms_setWeights(dpdx, dpdy, true);
 #else
+    ms_reliefFootprint(p0, d, dpdx, dpdy);
     ms_setWeights(dpdx, dpdy, false);
 #endif
-    vec3 d = u_eyeObject.w > 0.5 ? normalize(p0 - u_eyeObject.xyz) : normalize(u_eyeObject.xyz);
     vec3 o = u_eyeObject.w > 0.5 ? u_eyeObject.xyz : p0 - d * (4.0 * (ms_radius + ms_heightBound) + 1.0);
     vec3 slab = ms_slab(o, d, ms_heightBound);
     if (slab.y < slab.x) discard;
