@@ -7,7 +7,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 SPP="${SPP:-64}"
 mkdir -p docs/images/microsurface out/docs
-for preset in micro-heights-terrain micro-heights-sphere micro-slopes-sphere micro-snake-sphere \
+for preset in micro-heights-terrain micro-heights-grazing micro-heights-sphere micro-slopes-sphere micro-snake-sphere \
               micro-irradiance-terrain micro-moss-sphere micro-sponge-sphere; do
   size=256x256
   case "$preset" in *terrain*) size=256x192 ;; esac
