@@ -220,6 +220,36 @@ def test_relief_footprint_brings_the_grazing_terrain_closer_to_the_ray_marched_r
     assert flip["relief", "surface-filter"] < 0.9 * flip["macro", "surface-filter"], flip
 
 
+@pytest.mark.parametrize("preset", ["micro-heights-sphere", "micro-slopes-sphere"])
+def test_shading_samples_bring_the_sphere_closer_to_the_ray_marched_reference(preset):
+    """Octaves that the footprint half resolves: shading the pixel at N x N sub-pixel points with a 1/N
+    footprint's split (shading_samples, 9 by default) is closer to the supersampled explicit microgeometry
+    than one sample at the pixel centre (at 256 px against 256 spp the height sphere goes 0.079 -> 0.061,
+    and against 64 spp the slope sphere 0.133 -> 0.095)."""
+    from dataclasses import replace
+
+    from prefilter.gl.render import Renderer, composite, coverage_mask
+    from prefilter.metrics import compare
+    from prefilter.scene import resolve_scene
+
+    base = resolve_scene(preset)
+    assert base.objects[0].material.shading_samples == 9
+    flip, ref, mask = {}, None, None
+    for samples in (1, 4, 9):
+        objects = [replace(o, material=replace(o.material, shading_samples=samples)) for o in base.objects]
+        scene = replace(base, objects=objects)
+        renderer = Renderer(scene, (128, 128))
+        try:
+            if ref is None:
+                ref = renderer.reference(16)
+                mask = coverage_mask(ref)
+            image = composite(renderer.render("surface-filter"), scene.background)
+            flip[samples] = compare(image, composite(ref, scene.background), mask)["flip"]
+        finally:
+            renderer.release()
+    assert flip[9] < flip[4] < 0.95 * flip[1], flip
+
+
 TABLE = '[object.material.height_colour.colour_table]\nstops = [[0, "#000000"]]\n'
 HEIGHT = "[object.material.height]\n"
 
@@ -236,6 +266,7 @@ HEIGHT = "[object.material.height]\n"
         ),
         (HEIGHT + '[object.material.transfer]\nfunction = "lava"\n' + TABLE, "transfer.function"),
         ('footprint = "screen"\n' + HEIGHT + TABLE, "footprint"),
+        ("shading_samples = 3\n" + HEIGHT + TABLE, "shading_samples"),
     ],
 )
 def test_bad_microsurface_scenes_name_the_key(tmp_path, material, key):

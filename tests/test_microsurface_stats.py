@@ -515,11 +515,7 @@ def test_gauss_hermite_2d_exact_to_degree_5():
 
 GH_PRELUDE = """
 vec3 ghNode(vec2 mean, vec3 cov, float k) {
-    vec2 nodes[9];
-    float weights[9];
-    ms_slopeNodes3(mean, cov, nodes, weights);
-    int i = int(k + 0.5);
-    return vec3(nodes[i], weights[i]);
+    return ms_slopeNode3(mean, cov, int(k + 0.5));
 }
 vec4 visMeanCov(vec3 wo, vec2 mean, vec3 cov) {
     vec2 m;

@@ -186,6 +186,7 @@ mat3 ms_macroFrame(vec3 q) { return mat3(vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, -1.
 // facing slope tied to the coarse slopes (the visible-slope mean, 1.25 σ_c at grazing) did worse.
 // Spheres whose relief is below a pixel keep their macro footprint. MS_MACRO_FOOTPRINT turns it off.
 #define MS_FACING_SLOPE 0.2
+float ms_reliefGate = 0.0;  // g of the last ms_reliefFootprint: 1 where the coarse relief stands out of the pixel
 
 void ms_reliefFootprint(vec3 q, vec3 view, inout vec3 dpdx, inout vec3 dpdy) {
 #ifndef MS_MACRO_FOOTPRINT
@@ -210,6 +211,7 @@ void ms_reliefFootprint(vec3 q, vec3 view, inout vec3 dpdx, inout vec3 dpdy) {
 #endif
     float pixel = max(length(dpdx), length(dpdy)) * cosine;  // the pixel's size across the ray
     float gate = smoothstep(0.25, 1.0, sigma / max(pixel, 1e-30));
+    ms_reliefGate = gate;
     float scale = cosine / (cosine + gate * MS_FACING_SLOPE * sine);
     dpdx -= (1.0 - scale) * dot(dpdx, along) * along;
     dpdy -= (1.0 - scale) * dot(dpdy, along) * along;

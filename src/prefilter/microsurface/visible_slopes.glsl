@@ -20,10 +20,11 @@
 //   float ms_projectedArea(vec3 wo, vec2 mean, vec3 cov)   E[max(o_z - dot(s, o_xy), 0)], the projected
 //         area (integral of max(cos theta_o, 0) dA) per unit macro area: c Phi(a) + sigma_u phi(a),
 //         c = o_z - dot(o_xy, mean); max(c, 0) when sigma_u = 0.
-//   void  ms_slopeNodes3(vec2 mean, vec3 cov, out vec2 nodes[9], out float weights[9])
+//   vec3  ms_slopeNode3(vec2 mean, vec3 cov, int k)   (node, weight) k = 3 i + j, k in 0..8, of the
 //         3x3 Gauss-Hermite cubature against N(mean, Sigma): node 3 i + j = mean + L (z_i, z_j), L the
 //         lower Cholesky factor of Sigma (semidefinite allowed), z in {-sqrt(3), 0, sqrt(3)}, weights
-//         w_i w_j with w = (1/6, 2/3, 1/6). Exact for polynomials of degree <= 5 in each slope.
+//         w_i w_j with w = (1/6, 2/3, 1/6). Exact for polynomials of degree <= 5 in each slope. One node a
+//         call, no arrays (llvmpipe keeps local arrays in memory: the shading samples loop pays for them).
 
 #include "microsurface/smith.glsl"
 
@@ -72,19 +73,15 @@ float ms_projectedArea(vec3 wo, vec2 mean, vec3 cov) {
     return su * ms_normalPdf(a) * ms_normalLossScaled(-a);
 }
 
-void ms_slopeNodes3(vec2 mean, vec3 cov, out vec2 nodes[9], out float weights[9]) {
+vec3 ms_slopeNode3(vec2 mean, vec3 cov, int k) {
     float l11 = sqrt(max(cov.x, 0.0));
     float l21 = l11 > 0.0 ? cov.y / l11 : 0.0;
     float l22 = sqrt(max(cov.z - l21 * l21, 0.0));
     const float Z = 1.7320508076;  // sqrt(3)
-    for (int i = 0; i < 3; ++i) {
-        float zi = Z * float(i - 1);
-        float wi = i == 1 ? 2.0 / 3.0 : 1.0 / 6.0;
-        for (int j = 0; j < 3; ++j) {
-            float zj = Z * float(j - 1);
-            float wj = j == 1 ? 2.0 / 3.0 : 1.0 / 6.0;
-            nodes[3 * i + j] = mean + vec2(l11 * zi, l21 * zi + l22 * zj);
-            weights[3 * i + j] = wi * wj;
-        }
-    }
+    int i = k / 3;
+    int j = k - 3 * i;
+    float zi = Z * float(i - 1);
+    float zj = Z * float(j - 1);
+    float weight = (i == 1 ? 2.0 / 3.0 : 1.0 / 6.0) * (j == 1 ? 2.0 / 3.0 : 1.0 / 6.0);
+    return vec3(mean + vec2(l11 * zi, l21 * zi + l22 * zj), weight);
 }
