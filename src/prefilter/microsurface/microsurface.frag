@@ -131,13 +131,13 @@ MsSurface ms_surfaceAt(vec3 p, mat3 frame) {
     return s;
 }
 
-// Shading samples: where the sub-pixel ray through the macro surface point x0 (from `eye` for perspective
-// cameras, along the view direction d for orthographic ones) meets the plane through the marched point q
-// with the marched surface's normal n: the parallax of the marched relief to first order (on a facet that
-// faces a grazing eye the points close up). Kept within twice |shift| of q; q + shift, the point on the
-// macro surface's tangent plane, where the ray runs along the facet.
-vec3 ms_subpixelPoint(vec3 eye, vec3 x0, vec3 d, vec3 q, vec3 n, vec3 shift) {
-    vec3 dk = u_eyeObject.w > 0.5 ? normalize(x0 - eye) : d;
+// Shading samples: where the sub-pixel ray through the macro surface point x0 (from the eye for
+// perspective cameras, along the view direction d for orthographic ones) meets the plane through the
+// marched point q with the marched surface's normal n: the parallax of the marched relief to first order
+// (on a facet that faces a grazing eye the points close up). Kept within twice |shift| of q; q + shift,
+// the point on the macro surface's tangent plane, where the ray runs along the facet.
+vec3 ms_subpixelPoint(vec3 x0, vec3 d, vec3 q, vec3 n, vec3 shift) {
+    vec3 dk = u_eyeObject.w > 0.5 ? normalize(x0 - u_eyeObject.xyz) : d;
     float den = dot(dk, n);
     if (den > -0.05) return q + shift;
     vec3 dq = x0 + dot(q - x0, n) / den * dk - q;
@@ -280,8 +280,8 @@ void main() {
 #if MS_SHADING_SAMPLES > 1
         vec2 offset = (vec2(k % MS_SHADING_GRID, k / MS_SHADING_GRID) + 0.5 - 0.5 * float(MS_SHADING_GRID))
                     * (1.0 - ms_reliefGate) / float(MS_SHADING_GRID);
-        vec3 pk = ms_subpixelPoint(u_eyeObject.xyz, p0 + offset.x * dFdx(p0) + offset.y * dFdy(p0), d, q,
-                                   marchedNormal, offset.x * dpdx + offset.y * dpdy);
+        vec3 pk = ms_subpixelPoint(p0 + offset.x * dFdx(p0) + offset.y * dFdy(p0), d, q, marchedNormal,
+                                   offset.x * dpdx + offset.y * dpdy);
         MsSurface s = ms_surfaceAt(ms_project(pk), frame);
 #else
         MsSurface s = ms_surfaceAt(p, frame);
