@@ -47,6 +47,44 @@ def test_gpu_moment_texture_holds_the_pyramid():
         resources.release()
 
 
+def bilinear_repeat(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """f at uv from the four nearest texels, the image repeating once per unit (texel centres at +1/2)."""
+    h, w = image.shape
+    x = uv[:, 0] * w - 0.5
+    y = uv[:, 1] * h - 0.5
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    fx, fy = x - x0, y - y0
+    at = lambda j, i: image[j % h, i % w]  # noqa: E731
+    top = at(y0, x0) * (1 - fx) + at(y0, x0 + 1) * fx
+    bottom = at(y0 + 1, x0) * (1 - fx) + at(y0 + 1, x0 + 1) * fx
+    return top * (1 - fy) + bottom * fy
+
+
+@pytest.mark.parametrize("target", ["gl330", "es300"])
+def test_point_read_is_the_base_level_not_the_anisotropic_filter(target):
+    """Each reference pass must see f itself. Random neighbouring uvs give the fragments huge
+    derivatives, under which the driver's 16x anisotropic sampler blurs (llvmpipe does so even for
+    textureLod at level 0); the texelFetch read must still equal bilinear reconstruction of level 0."""
+    scene = resolve_scene("terrain-data")
+    material = scene.objects[0].material
+    resources = material.upload(gl_context(), mesh=None)
+    try:
+        uv = np.random.default_rng(7).uniform(-3.0, 3.0, size=(4096, 2))
+        got = glsl_eval(
+            "tb_driverAtBase(driver, uv)",
+            {"uv": uv},
+            1,
+            includes=("colormap/tabulated.glsl",),
+            target=target,
+            prelude="uniform sampler2D driver;",
+            textures={"driver": resources.driver},
+        ).ravel()
+    finally:
+        resources.release()
+    want = bilinear_repeat(material.driver, uv)
+    np.testing.assert_allclose(got, want, atol=2e-5)
+
+
 def test_read_driver_errors(tmp_path):
     odd = tmp_path / "odd.png"
     iio.imwrite(odd, np.zeros((30, 32), np.uint8))

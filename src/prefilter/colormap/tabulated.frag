@@ -1,10 +1,12 @@
 // Colour map over a tabulated driver image (colormap/tabulated.py): Heitz et al. §4.2.
-//   MODE_POINT     c(f) with f reconstructed bilinearly at level 0 (each pass of the reference)
+//   MODE_POINT     c(f) with f reconstructed bilinearly at level 0 (each pass of the reference;
+//                  tb_driverAtBase, texelFetch: no anisotropic blur)
 //   MODE_NAIVE     c(E[f]) with E[f] from the trilinear, anisotropic MIP map (today's renderers)
 //   MODE_GAUSSIAN  C̄(E[f], sqrt(E[f²] − E[f]²)) from the MIP map of (f, f²) and the preconvolved map
 // u_driver: RG32F (f, f²) with exact block-mean levels, LINEAR_MIPMAP_LINEAR, 16x anisotropy.
 
 #include "colormap/colormap.glsl"
+#include "colormap/tabulated.glsl"
 #include "glsl/common/shading.glsl"
 
 in vec3 v_normal;
@@ -23,7 +25,7 @@ void main() {
     vec2 uv = v_uv * u_uvScale;
     vec4 albedo;
 #if defined(MODE_POINT)
-    albedo = cm_point(u_tablePoint, textureLod(u_driver, uv, 0.0).x, u_wrap);
+    albedo = cm_point(u_tablePoint, tb_driverAtBase(u_driver, uv), u_wrap);
 #elif defined(MODE_NAIVE)
     albedo = cm_point(u_tablePoint, texture(u_driver, uv).x, u_wrap);
 #elif defined(MODE_GAUSSIAN)
