@@ -144,6 +144,73 @@ vec3 ms_subpixelPoint(vec3 x0, vec3 d, vec3 q, vec3 n, vec3 shift) {
     return q + dq * min(1.0, 2.0 * length(shift) / max(length(dq), 1e-30));
 }
 
+// The whole footprint's split, as the shading samples see it: the marched (coarse) surface's slope
+// covariance and height variance in driver units, the ratios of the fractal's effective to its actual slope
+// variance (fractal_masking.py: what Λ sees), whole and coarse, and what the 1/N footprint resolves beyond
+// the whole one (0 with one sample).
+struct MsFootprint {
+    vec3 marchedCov;
+    float marchedVariance;
+    float maskingScale;
+    float marchedMaskingScale;
+    float sampledHeightVariance;
+    float sampledSlopeVariance;
+};
+
+// Smith's masking towards the eye at a sample s. Without a transfer function it is the same for every
+// sample, and so is each light's part (MsLight).
+struct MsMasking {
+    vec3 totalCov;      // slopes of the whole surface (coarse + micro), as Λ sees them
+    vec3 coarseCov;     // slopes of the coarse (marched) surface, as Λ sees them
+    float sigmaT;       // height deviations, whole and coarse
+    float sigmaC;
+    float unsampled;    // the part of D_h's variance beyond the coarse surface that no sample resolves
+    float lambdaOT;     // Λ(ω_o), whole and coarse
+    float lambdaOC;
+    vec2 viewHeights;   // D_h's (shift, variance) for the view alone (Λ_i = 0); with MS_HEIGHT_MAP
+};
+
+MsMasking ms_masking(vec3 wo, MsSurface s, MsFootprint f) {
+    // (E[h'], E[h'²]) scale driver variances to height variances (1, 1 without a transfer function)
+    vec2 gain = s.transferMoments.zw;
+    vec3 coarseCov = f.marchedCov * gain.y;
+    float coarseVariance = f.marchedVariance * gain.x * gain.x;
+    // the micro part of the whole footprint: the sample's unresolved part plus what the samples resolve
+    vec3 microCov = s.slopeCov + gain.y * f.sampledSlopeVariance * vec3(1.0, 0.0, 1.0);
+    float microVariance = s.heightVariance + gain.x * gain.x * f.sampledHeightVariance;
+    MsMasking m;
+    m.totalCov = (microCov + coarseCov) * f.maskingScale;
+    m.coarseCov = coarseCov * f.marchedMaskingScale;
+    m.sigmaC = sqrt(coarseVariance);
+    m.sigmaT = sqrt(microVariance + coarseVariance);
+    m.unsampled = microVariance > 0.0 ? s.heightVariance / microVariance : 0.0;
+    m.lambdaOT = ms_lambda(wo, m.totalCov);
+    m.lambdaOC = ms_lambda(wo, m.coarseCov);
+    m.viewHeights = vec2(0.0);
+#ifdef MS_HEIGHT_MAP
+    m.viewHeights = ms_microHeights(m.lambdaOT, m.lambdaOC, m.sigmaT, m.sigmaC);
+#endif
+    return m;
+}
+
+// One light's share under masking m: V̄ = V̄_t / V̄_c and D_h's (shift, variance) for Λ_o + Λ_i.
+struct MsLight {
+    float visibility;
+    vec2 heights;
+};
+
+MsLight ms_light(MsMasking m, vec3 wi) {
+    float lambdaIT = ms_lambda(wi, m.totalCov);
+    float lambdaIC = ms_lambda(wi, m.coarseCov);
+    MsLight light;
+    light.visibility = ms_averageVisibility(m.lambdaOT, lambdaIT) / ms_averageVisibility(m.lambdaOC, lambdaIC);
+    light.heights = vec2(0.0);
+#ifdef MS_HEIGHT_MAP
+    light.heights = ms_microHeights(m.lambdaOT + lambdaIT, m.lambdaOC + lambdaIC, m.sigmaT, m.sigmaC);
+#endif
+    return light;
+}
+
 void main() {
     vec3 p0 = v_solid;
     vec3 dpdx = dFdx(p0);
@@ -251,10 +318,11 @@ void main() {
     float shadows[SH_MAX_LIGHTS];  // of the coarse surface, binary; traced once per light when needed
     for (int j = 0; j < SH_MAX_LIGHTS; ++j) shadows[j] = -1.0;
     // The whole footprint's split: the coarse (marched) surface and the driver's unresolved variances.
-    vec3 marchedCov = vec3(ms_coarseSlopeVariance, 0.0, ms_coarseSlopeVariance);
-    float marchedVariance = ms_coarseHeightVariance;
-    float marchedMaskingScale = ms_coarseMaskingSlopeVariance / max(ms_coarseSlopeVariance, 1e-30);
-    float maskingScale = ms_maskingSlopeVariance / max(ms_slopeVariance + ms_coarseSlopeVariance, 1e-30);
+    MsFootprint footprint;
+    footprint.marchedCov = vec3(ms_coarseSlopeVariance, 0.0, ms_coarseSlopeVariance);
+    footprint.marchedVariance = ms_coarseHeightVariance;
+    footprint.maskingScale = ms_maskingSlopeVariance / max(ms_slopeVariance + ms_coarseSlopeVariance, 1e-30);
+    footprint.marchedMaskingScale = ms_coarseMaskingSlopeVariance / max(ms_coarseSlopeVariance, 1e-30);
     float footprintHeightVariance = ms_heightVariance;
     float footprintSlopeVariance = ms_slopeVariance;
 #if MS_SHADING_SAMPLES > 1
@@ -264,8 +332,16 @@ void main() {
     ms_setWeights(sub * dpdx, sub * dpdy, false);
 #endif
     // What the 1/N footprint resolves beyond the whole one (0 with one sample): the samples show it.
-    float sampledHeightVariance = footprintHeightVariance - ms_heightVariance;
-    float sampledSlopeVariance = footprintSlopeVariance - ms_slopeVariance;
+    footprint.sampledHeightVariance = footprintHeightVariance - ms_heightVariance;
+    footprint.sampledSlopeVariance = footprintSlopeVariance - ms_slopeVariance;
+#ifndef MS_TRANSFER
+    // The same for every sample: their unresolved variances are the 1/N footprint's, E[h'] = E[h'²] = 1.
+    MsSurface unresolved = MsSurface(0.0, vec2(0.0), ms_heightVariance, vec3(ms_slopeVariance, 0.0, ms_slopeVariance),
+                                     0.0, vec4(0.0, 0.0, 1.0, 1.0));
+    MsMasking m = ms_masking(wo, unresolved, footprint);
+    MsLight lights[SH_MAX_LIGHTS];  // each light's share under m, computed when first needed
+    for (int j = 0; j < SH_MAX_LIGHTS; ++j) lights[j].visibility = -1.0;
+#endif
     vec3 radiance = vec3(0.0);
     vec3 plainSum = vec3(0.0);
     float areaSum = 0.0;
@@ -287,23 +363,9 @@ void main() {
         MsSurface s = ms_surfaceAt(p, frame);
 #endif
         float textureVariance = ms_textureVariance;
-        // (E[h'], E[h'²]) scale driver variances to height variances (1, 1 without a transfer function)
-        vec2 gain = s.transferMoments.zw;
-        vec3 coarseCov = marchedCov * gain.y;
-        float coarseVariance = marchedVariance * gain.x * gain.x;
-        // the micro part of the whole footprint: the sample's unresolved part plus what the samples resolve
-        vec3 microCov = s.slopeCov + gain.y * sampledSlopeVariance * vec3(1.0, 0.0, 1.0);
-        float microVariance = s.heightVariance + gain.x * gain.x * sampledHeightVariance;
-        // Λ sees the fractal's effective slopes (fractal_masking.py): the same covariances scaled by the
-        // ratio of the effective to the actual slope variance of the driver, whole and coarse.
-        vec3 totalCov = (microCov + coarseCov) * maskingScale;
-        coarseCov *= marchedMaskingScale;
-        float sigmaC = sqrt(coarseVariance);
-        float sigmaT = sqrt(microVariance + coarseVariance);
-        // D_h's variance beyond the coarse surface, the part the sample leaves to statistics
-        float unsampled = microVariance > 0.0 ? s.heightVariance / microVariance : 0.0;
-        float lambdaOT = ms_lambda(wo, totalCov);
-        float lambdaOC = ms_lambda(wo, coarseCov);
+#ifdef MS_TRANSFER
+        MsMasking m = ms_masking(wo, s, footprint);
+#endif
         vec2 visMean;
         vec3 visCov;
         ms_visibleSlopes(wo, s.slope, s.slopeCov, visMean, visCov);
@@ -317,9 +379,8 @@ void main() {
         float perturbVariance = u_perturb * u_perturb * textureVariance;
         // The view alone (ambient, environment light): Λ_i = 0, V̄ = 1.
 #ifdef MS_HEIGHT_MAP
-        vec2 dh = ms_microHeights(lambdaOT, lambdaOC, sigmaT, sigmaC);
-        ch = ms_mapGaussian(u_heightGaussian, u_heightMap, s.h + dh.x + u_perturb * s.r, unsampled * dh.y + perturbVariance,
-                            u_heightWrap, u_heightRange);
+        ch = ms_mapGaussian(u_heightGaussian, u_heightMap, s.h + m.viewHeights.x + u_perturb * s.r,
+                            m.unsampled * m.viewHeights.y + perturbVariance, u_heightWrap, u_heightRange);
 #endif
         vec4 albedoView = ms_combine(c0, ch, cs);
 #ifdef MS_IRRADIANCE
@@ -350,15 +411,17 @@ void main() {
             }
             cosine *= shadows[j];
             if (cosine <= 0.0) continue;
-            float lambdaIT = ms_lambda(wi, totalCov);
-            float lambdaIC = ms_lambda(wi, coarseCov);
-            float visibility = ms_averageVisibility(lambdaOT, lambdaIT) / ms_averageVisibility(lambdaOC, lambdaIC);
-#ifdef MS_HEIGHT_MAP
-            vec2 dhl = ms_microHeights(lambdaOT + lambdaIT, lambdaOC + lambdaIC, sigmaT, sigmaC);
-            ch = ms_mapGaussian(u_heightGaussian, u_heightMap, s.h + dhl.x + u_perturb * s.r, unsampled * dhl.y + perturbVariance,
-                                u_heightWrap, u_heightRange);
+#ifdef MS_TRANSFER
+            MsLight light = ms_light(m, wi);
+#else
+            if (lights[j].visibility < 0.0) lights[j] = ms_light(m, wi);
+            MsLight light = lights[j];
 #endif
-            vec4 albedo = visibility * ms_combine(c0, ch, cs);
+#ifdef MS_HEIGHT_MAP
+            ch = ms_mapGaussian(u_heightGaussian, u_heightMap, s.h + light.heights.x + u_perturb * s.r,
+                                m.unsampled * light.heights.y + perturbVariance, u_heightWrap, u_heightRange);
+#endif
+            vec4 albedo = light.visibility * ms_combine(c0, ch, cs);
             sampleRadiance += albedo.rgb * cosine * sh_lightColour[j];
         }
 #endif
