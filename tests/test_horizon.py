@@ -3,6 +3,7 @@
 import time
 
 import numpy as np
+from oracles import bilinear
 
 from prefilter.normals.horizon import horizon_slopes, visible
 
@@ -57,19 +58,6 @@ def smooth_surface(n=32):
     x, y = np.meshgrid(np.arange(n) + 0.5, np.arange(n) + 0.5)
     k = 2 * np.pi / n
     return 3.0 * np.sin(k * x) * np.cos(k * y) + 1.5 * np.sin(k * (x + 2 * y) + 1.0)
-
-
-def bilinear(h, x, y):
-    """Periodic bilinear interpolation of texel-centre samples at (x, y) in texel widths."""
-    rows, cols = h.shape
-    gx, gy = x - 0.5, y - 0.5
-    j0, i0 = np.floor(gx).astype(int), np.floor(gy).astype(int)
-    fx, fy = gx - j0, gy - i0
-    j1, i1 = (j0 + 1) % cols, (i0 + 1) % rows
-    j0, i0 = j0 % cols, i0 % rows
-    top = h[i0, j0] * (1 - fx) + h[i0, j1] * fx
-    bottom = h[i1, j0] * (1 - fx) + h[i1, j1] * fx
-    return top * (1 - fy) + bottom * fy
 
 
 def ray_margin(h, i, j, w, reach):
