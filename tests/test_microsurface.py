@@ -243,6 +243,51 @@ def test_shading_samples_bring_the_sphere_closer_to_the_ray_marched_reference(pr
     assert flip[9, "surface-filter"] < flip[4, "surface-filter"] < 0.95 * flip[1, "surface-filter"], flip
 
 
+def _macro_sphere_cosine(scene, size):
+    """n·l of the unit macro sphere at each pixel centre (NumPy ray casting; NaN off the sphere)."""
+    w, h = size
+    camera = scene.camera
+    inverse = np.linalg.inv(camera.projection_matrix(w / h) @ camera.view_matrix())
+    ys, xs = np.mgrid[0:h, 0:w]
+    ndc = np.stack(
+        [(xs + 0.5) / w * 2 - 1, 1 - (ys + 0.5) / h * 2, np.ones_like(xs, float), np.ones_like(xs, float)], -1
+    )
+    far = ndc @ inverse.T
+    d = far[..., :3] / far[..., 3:] - camera.eye
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    b = d @ camera.eye
+    disc = b * b - (camera.eye @ camera.eye - 1.0)
+    normal = camera.eye + (-b - np.sqrt(np.where(disc > 0, disc, np.nan)))[..., None] * d
+    light = scene.lights[0].direction / np.linalg.norm(scene.lights[0].direction)
+    return normal @ light
+
+
+def test_tall_relief_on_a_sphere_takes_light_from_below_the_macro_horizon():
+    """Moss tufts 0.03 tall on a unit sphere see the sun down to about 0.15 below the macro horizon. In the
+    ray-marched reference the band n·l in [-0.12, 0) is lit; surface-filter matches its mean radiance
+    (it was 40 % too dark when lights below the macro horizon were dropped) and the band beyond stays as
+    dark as the reference (shadow rays that ran out of steps let light through there)."""
+    from prefilter.gl.render import Renderer, composite, coverage_mask
+    from prefilter.scene import resolve_scene
+
+    scene = resolve_scene("micro-moss-sphere")
+    size = (128, 128)
+    renderer = Renderer(scene, size)
+    try:
+        ref_rgba = renderer.reference(16)
+        image = composite(renderer.render("surface-filter"), scene.background).mean(-1)
+    finally:
+        renderer.release()
+    ref = composite(ref_rgba, scene.background).mean(-1)
+    cosine = _macro_sphere_cosine(scene, size)
+    covered = coverage_mask(ref_rgba)
+    below = covered & (cosine >= -0.12) & (cosine < 0.0)
+    beyond = covered & (cosine >= -0.3) & (cosine < -0.18)
+    assert below.sum() > 150 and beyond.sum() > 150
+    assert abs(image[below].mean() / ref[below].mean() - 1.0) < 0.1, (image[below].mean(), ref[below].mean())
+    assert image[beyond].mean() < 1.05 * ref[beyond].mean(), (image[beyond].mean(), ref[beyond].mean())
+
+
 TABLE = '[object.material.height_colour.colour_table]\nstops = [[0, "#000000"]]\n'
 HEIGHT = "[object.material.height]\n"
 

@@ -34,6 +34,11 @@ const mat3 MS_ENV_FROM_WORLD = mat3(vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), ve
 #define MS_SHADING_GRID 1
 #endif
 #define MS_SHADING_SAMPLES (MS_SHADING_GRID * MS_SHADING_GRID)
+// Shadow rays near the terminator graze the relief over long paths; one that runs out of steps counts as
+// unoccluded, so every mode gives them the point mode's budget.
+#ifndef MS_SHADOW_STEPS
+#define MS_SHADOW_STEPS 768
+#endif
 #ifndef MS_MAX_STEPS
 #if defined(MODE_POINT) || defined(MODE_MARCH_STEPS)
 #define MS_MAX_STEPS 768  // the full geometry at grazing angles needs long marches
@@ -211,6 +216,27 @@ MsLight ms_light(MsMasking m, vec3 wi) {
     return light;
 }
 
+#ifdef MS_SPHERE
+// A light at or below the macro horizon: Smith's G1 of a plane is 0 there, but on a sphere of radius R a
+// point standing h above it sees down to about sqrt(2h/R) below its tangent plane. The coarse surface's
+// shadow ray decides whether the coarse relief lets the light through; the micro relief then shadows as a
+// plane tangent to the sample's coarse facet (slope s): V̄ (eq. 12) of the micro statistics, ω_o and ω_i
+// measured from the facet's normal (their in-plane parts taken along the first axis: the micro slopes are
+// isotropic). main() blends it into V̄_t / V̄_c over 0 < ω_i.z < sqrt(2σ_t/R), so light is continuous
+// across the horizon. Measured (micro-moss-sphere, 256 px, 64 spp): the band within 0.15 below the horizon
+// was 40 % too dark with no light there; it is now within 4 % (FLIP 0.120 -> 0.111 with the shadow budget).
+float ms_facetMicroVisibility(MsMasking m, vec3 wo, vec3 wi, vec2 slope) {
+    vec3 n = normalize(vec3(-slope, 1.0));
+    float iz = dot(wi, n);
+    if (iz <= 0.0) return 0.0;
+    float oz = dot(wo, n);
+    vec3 microCov = max(m.totalCov - m.coarseCov, vec3(0.0));
+    float lambdaO = ms_lambda(vec3(length(wo - oz * n), 0.0, oz), microCov);
+    float lambdaI = ms_lambda(vec3(length(wi - iz * n), 0.0, iz), microCov);
+    return ms_averageVisibility(lambdaO, lambdaI);
+}
+#endif
+
 void main() {
     vec3 p0 = v_solid;
     vec3 dpdx = dFdx(p0);
@@ -284,7 +310,7 @@ void main() {
         if (j >= sh_lightCount) break;
         vec3 l = normalize(mat3(u_objectFromWorld) * sh_lightDirection[j]);
         float cosine = max(dot(normal, l), 0.0);
-        if (cosine > 0.0) cosine *= ms_shadow(q, l, MS_MAX_STEPS);
+        if (cosine > 0.0) cosine *= ms_shadow(q, l, MS_SHADOW_STEPS);
         radiance += albedo.rgb * cosine * sh_lightColour[j];
     }
 #endif
@@ -392,8 +418,11 @@ void main() {
             vec3 l = normalize(mat3(u_objectFromWorld) * sh_lightDirection[j]);
             vec3 wi = l * frame;
             // At or below the macro horizon Smith's shadowing G1(wi) of the whole surface is 0; the ratio
-            // V̄_t / V̄_c below of two vanishing visibilities is not (it let light through at the terminator).
+            // V̄_t / V̄_c below of two vanishing visibilities is not. A plane takes no light from there, a
+            // sphere the light that its tall points see (ms_facetMicroVisibility).
+#ifndef MS_SPHERE
             if (wi.z <= 0.0) continue;
+#endif
             float cosine = 0.0;  // Lambert averaged over the visible slopes D_s
             for (int n = 0; n < 9; ++n) {
                 vec3 node = ms_slopeNode3(visMean, visCov, n);
@@ -403,10 +432,10 @@ void main() {
             if (shadows[j] < 0.0) {
 #if MS_SHADING_SAMPLES > 1
                 ms_setWeights(dpdx, dpdy, false);  // the marched surface casts them
-                shadows[j] = ms_shadow(q, l, MS_MAX_STEPS);
+                shadows[j] = ms_shadow(q, l, MS_SHADOW_STEPS);
                 ms_setWeights(sub * dpdx, sub * dpdy, false);
 #else
-                shadows[j] = ms_shadow(q, l, MS_MAX_STEPS);
+                shadows[j] = ms_shadow(q, l, MS_SHADOW_STEPS);
 #endif
             }
             cosine *= shadows[j];
@@ -420,6 +449,13 @@ void main() {
 #ifdef MS_HEIGHT_MAP
             ch = ms_mapGaussian(u_heightGaussian, u_heightMap, s.h + light.heights.x + u_perturb * s.r,
                                 m.unsampled * light.heights.y + perturbVariance, u_heightWrap, u_heightRange);
+#endif
+#ifdef MS_SPHERE
+            float band = sqrt(2.0 * m.sigmaT / ms_radius);
+            if (wi.z < band) {
+                light.visibility = mix(ms_facetMicroVisibility(m, wo, wi, s.slope),
+                                       wi.z > 0.0 ? light.visibility : 0.0, smoothstep(0.0, band, wi.z));
+            }
 #endif
             vec4 albedo = light.visibility * ms_combine(c0, ch, cs);
             sampleRadiance += albedo.rgb * cosine * sh_lightColour[j];
