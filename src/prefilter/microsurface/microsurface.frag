@@ -368,6 +368,9 @@ void main() {
     MsLight lights[SH_MAX_LIGHTS];  // each light's share under m, computed when first needed
     for (int j = 0; j < SH_MAX_LIGHTS; ++j) lights[j].visibility = -1.0;
 #endif
+#ifdef MS_SPHERE
+    float horizonDip = sqrt(2.0 * max(ms_altitude(q) + ms_heightBound, 0.0) / ms_radius);
+#endif
     vec3 radiance = vec3(0.0);
     vec3 plainSum = vec3(0.0);
     float areaSum = 0.0;
@@ -419,17 +422,15 @@ void main() {
             vec3 wi = l * frame;
             // At or below the macro horizon Smith's shadowing G1(wi) of the whole surface is 0; the ratio
             // V̄_t / V̄_c below of two vanishing visibilities is not. A plane takes no light from there, a
-            // sphere the light that its tall points see (ms_facetMicroVisibility).
-#ifndef MS_SPHERE
+            // sphere the light that its tall points see (ms_facetMicroVisibility): a ray leaving the
+            // marched point's altitude h at slope -μ dives μ²R/2 and meets the coarse relief (|h| < b)
+            // unless μ < sqrt(2(h + b)/R).
+#ifdef MS_SPHERE
+            if (wi.z <= -horizonDip) continue;
+#else
             if (wi.z <= 0.0) continue;
 #endif
-            float cosine = 0.0;  // Lambert averaged over the visible slopes D_s
-            for (int n = 0; n < 9; ++n) {
-                vec3 node = ms_slopeNode3(visMean, visCov, n);
-                cosine += node.z * max(dot(normalize(vec3(-node.xy, 1.0)), wi), 0.0);
-            }
-            if (cosine <= 0.0) continue;
-            if (shadows[j] < 0.0) {
+            if (shadows[j] < 0.0) {  // first: near and below the horizon most pixels are in shadow
 #if MS_SHADING_SAMPLES > 1
                 ms_setWeights(dpdx, dpdy, false);  // the marched surface casts them
                 shadows[j] = ms_shadow(q, l, MS_SHADOW_STEPS);
@@ -437,6 +438,12 @@ void main() {
 #else
                 shadows[j] = ms_shadow(q, l, MS_SHADOW_STEPS);
 #endif
+            }
+            if (shadows[j] <= 0.0) continue;
+            float cosine = 0.0;  // Lambert averaged over the visible slopes D_s
+            for (int n = 0; n < 9; ++n) {
+                vec3 node = ms_slopeNode3(visMean, visCov, n);
+                cosine += node.z * max(dot(normalize(vec3(-node.xy, 1.0)), wi), 0.0);
             }
             cosine *= shadows[j];
             if (cosine <= 0.0) continue;
