@@ -368,8 +368,11 @@ void main() {
     MsLight lights[SH_MAX_LIGHTS];  // each light's share under m, computed when first needed
     for (int j = 0; j < SH_MAX_LIGHTS; ++j) lights[j].visibility = -1.0;
 #endif
+    // how far below the macro horizon a light can still reach the marched point (0 on a plane; below)
 #ifdef MS_SPHERE
     float horizonDip = sqrt(2.0 * max(ms_altitude(q) + ms_heightBound, 0.0) / ms_radius);
+#else
+    float horizonDip = 0.0;
 #endif
     vec3 radiance = vec3(0.0);
     vec3 plainSum = vec3(0.0);
@@ -425,11 +428,7 @@ void main() {
             // sphere the light that its tall points see (ms_facetMicroVisibility): a ray leaving the
             // marched point's altitude h at slope -μ dives μ²R/2 and meets the coarse relief (|h| < b)
             // unless μ < sqrt(2(h + b)/R).
-#ifdef MS_SPHERE
             if (wi.z <= -horizonDip) continue;
-#else
-            if (wi.z <= 0.0) continue;
-#endif
             if (shadows[j] < 0.0) {  // first: near and below the horizon most pixels are in shadow
 #if MS_SHADING_SAMPLES > 1
                 ms_setWeights(dpdx, dpdy, false);  // the marched surface casts them
