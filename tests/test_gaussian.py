@@ -216,8 +216,25 @@ def test_fitted_split_stays_close_to_the_table():
     # it all to σ
     b, k, g, lam_ = split_fit(fits, np.array([1e-3, 1e3]), np.array([1e-3, 1e3]))
     np.testing.assert_allclose(b, [1, 0], atol=1e-9)
-    np.testing.assert_allclose(k, [1, 0], atol=1e-9)
+    np.testing.assert_allclose(k, [1, 0], atol=1e-6)
     np.testing.assert_allclose(lam_, [0, 1], atol=1e-9)
+
+
+def test_fitted_split_keeps_the_taylor_mean_and_drops_terms_that_grow_with_the_footprint():
+    """Small footprints: 1 - β and λ vanish faster than ρ², the order of the curvature term κ τ that
+    completes the Taylor mean (and of the linear part's spread). Long footprints: κ τ ~ κ ρ² and the
+    linear part γ ∇n·e ~ γ ρ must vanish, not grow with the footprint's length."""
+    fits = split_fits()
+    rho = np.array([0.01, 0.02, 0.04, 0.08])
+    beta, _, _, lam = split_fit(fits, rho, rho)
+    for vanishing in (1.0 - beta, lam):
+        ratio = vanishing / rho**2  # O(ρ) or smaller: at least halves with ρ
+        assert (ratio[1:] / ratio[:-1] > 1.9).all() and ratio[0] < 2e-3, ratio
+    length = np.array([16.0, 64.0, 256.0, 1024.0])
+    _, kappa, gamma, _ = split_fit(fits, np.full(4, 0.1), length)
+    curvature_weight, linear_weight = kappa * length**2, gamma * length
+    assert (np.diff(curvature_weight) < 0).all() and curvature_weight[0] < 0.05, curvature_weight
+    assert (np.diff(linear_weight) < 0).all() and linear_weight[0] < 0.01, linear_weight
 
 
 def test_driver_statistics_against_brute_force_footprints():
@@ -246,16 +263,16 @@ def test_driver_statistics_against_brute_force_footprints():
         assert error < 0.1 * np.mean((centre - true_mean) ** 2) and error < 0.05 * total, scale
 
 
-def test_generated_glsl_holds_the_fitted_edges():
+def test_generated_glsl_holds_the_fitted_coefficients():
     """noise_stats.glsl (what the shader reads) and the NumPy twin use the same fit of the same table."""
     import re
 
     text = GLSL.read_text()
-    for name, (e0, e1) in split_fits().items():
-        m = re.search(rf"NS_{name.upper()}_EDGES = vec2\(([-\d.]+), ([-\d.]+)\)", text)
-        assert m, name
-        assert float(m.group(1)) == pytest.approx(e0, abs=1e-5) and float(m.group(2)) == pytest.approx(
-            e1, abs=1e-5
-        )
+    fits = list(split_fits().values())  # β, κ, γ, 1 - λ: the order of the vec4 components
+    for index, constant in enumerate(("NS_FALL_A", "NS_FALL_B", "NS_FALL_C", "NS_FALL_D")):
+        m = re.search(rf"{constant} = vec4\(([-\d.e]+), ([-\d.e]+), ([-\d.e]+), ([-\d.e]+)\)", text)
+        assert m, constant
+        for component, fit in enumerate(fits):
+            assert float(m.group(component + 1)) == pytest.approx(fit[index], abs=1e-6), (constant, component)
     m = re.search(r"NS_VARIANCE = ([\d.]+);", text)
     assert float(m.group(1)) == pytest.approx(noise_stats().variance, abs=1e-6)

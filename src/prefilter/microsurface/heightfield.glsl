@@ -70,9 +70,10 @@ vec4 ms_transfer(float mu, float sigma) {
 
 // β of an octave for a box footprint with axes jx, jy in its lattice units (noise_stats.glsl fit).
 float ms_meanFraction(vec3 jx, vec3 jy) {
-    vec2 l = 0.5 * log2(max(vec2(dot(jx, jx), dot(jy, jy)), vec2(1e-30)));
-    vec2 b = 1.0 - smoothstep(NS_BETA_EDGES.x, NS_BETA_EDGES.y, l);
-    return b.x * b.y;
+    vec2 x = min(vec2(dot(jx, jx), dot(jy, jy)), vec2(1e12));  // as pt_splitFall
+    vec2 numerator = 1.0 + NS_FALL_A.x * x;
+    vec2 fall = numerator / (numerator + x * (NS_FALL_D.x + NS_FALL_B.x * sqrt(x) + NS_FALL_C.x * x));
+    return fall.x * fall.y;
 }
 
 // full = true: every octave is real geometry (point mode and each reference pass).

@@ -76,12 +76,20 @@ float pt_footprintLog2(vec3 jx, vec3 jy) {
 
 #include "procedural/noise_stats.glsl"
 
+// One axis of the rational fits, x = ρ²: numerator and denominator of F(ρ) for the four components (x is
+// capped where every F is 0 to float precision, so that neither product below overflows).
+void pt_splitFall(float x, out vec4 numerator, out vec4 denominator) {
+    x = min(x, 1e12);
+    numerator = 1.0 + NS_FALL_A * x;
+    denominator = numerator + x * (NS_FALL_D + NS_FALL_B * sqrt(x) + NS_FALL_C * x);
+}
+
 // (β, κ, γ, λ) of noise_stats for a term whose footprint axes are jx, jy in its lattice cells.
 vec4 pt_noiseSplit(vec3 jx, vec3 jy) {
-    vec2 l = 0.5 * log2(max(vec2(dot(jx, jx), dot(jy, jy)), vec2(1e-30)));
-    vec4 lo = vec4(NS_BETA_EDGES.x, NS_KAPPA_EDGES.x, NS_GAMMA_EDGES.x, NS_ONE_MINUS_LAMBDA_EDGES.x);
-    vec4 hi = vec4(NS_BETA_EDGES.y, NS_KAPPA_EDGES.y, NS_GAMMA_EDGES.y, NS_ONE_MINUS_LAMBDA_EDGES.y);
-    vec4 fall = (1.0 - smoothstep(lo, hi, l.xxxx)) * (1.0 - smoothstep(lo, hi, l.yyyy));
+    vec4 nx, dx, ny, dy;
+    pt_splitFall(dot(jx, jx), nx, dx);
+    pt_splitFall(dot(jy, jy), ny, dy);
+    vec4 fall = (nx * ny) / (dx * dy);
     return vec4(fall.xyz, 1.0 - fall.w);
 }
 
@@ -163,7 +171,7 @@ float pt_driverOctaveClamped(vec3 s, vec3 dsdx, vec3 dsdy) {
 // For a box footprint whose axes have lengths rho1, rho2 in lattice units, procedural/noise_stats.py
 // measured (β, κ, γ, λ): a term a n(T s + o) adds a (β n + κ τ) to the mean (τ as for the Hart modes'
 // centre), a γ T^T ∇n to the gradient and a² λ σ_n² to the residual variance; the linear part over a box
-// pixel has variance (g_x² + g_y²) / 12. noise_stats.glsl holds separable smoothstep fits of that table
+// pixel has variance (g_x² + g_y²) / 12. noise_stats.glsl holds separable rational fits of that table
 // (a lookup per term cost 1.3x). Terms with β = κ = γ = 0 (footprints over ~13 cells) are not evaluated:
 // their noise only adds variance. PT_FIRST_ORDER drops the curvature (κ = 0).
 
