@@ -70,10 +70,7 @@ vec4 ms_transfer(float mu, float sigma) {
 
 // β of an octave for a box footprint with axes jx, jy in its lattice units (noise_stats.glsl fit).
 float ms_meanFraction(vec3 jx, vec3 jy) {
-    vec2 x = min(vec2(dot(jx, jx), dot(jy, jy)), vec2(1e12));  // as pt_splitFall
-    vec2 numerator = 1.0 + NS_FALL_A.x * x;
-    vec2 fall = numerator / (numerator + x * (NS_FALL_D.x + NS_FALL_B.x * sqrt(x) + NS_FALL_C.x * x));
-    return fall.x * fall.y;
+    return ns_fall(dot(jx, jx), dot(jy, jy)).x;
 }
 
 // full = true: every octave is real geometry (point mode and each reference pass).

@@ -76,20 +76,9 @@ float pt_footprintLog2(vec3 jx, vec3 jy) {
 
 #include "procedural/noise_stats.glsl"
 
-// One axis of the rational fits, x = ρ²: numerator and denominator of F(ρ) for the four components (x is
-// capped where every F is 0 to float precision, so that neither product below overflows).
-void pt_splitFall(float x, out vec4 numerator, out vec4 denominator) {
-    x = min(x, 1e12);
-    numerator = 1.0 + NS_FALL_A * x;
-    denominator = numerator + x * (NS_FALL_D + NS_FALL_B * sqrt(x) + NS_FALL_C * x);
-}
-
 // (β, κ, γ, λ) of noise_stats for a term whose footprint axes are jx, jy in its lattice cells.
 vec4 pt_noiseSplit(vec3 jx, vec3 jy) {
-    vec4 nx, dx, ny, dy;
-    pt_splitFall(dot(jx, jx), nx, dx);
-    pt_splitFall(dot(jy, jy), ny, dy);
-    vec4 fall = (nx * ny) / (dx * dy);
+    vec4 fall = ns_fall(dot(jx, jx), dot(jy, jy));
     return vec4(fall.xyz, 1.0 - fall.w);
 }
 

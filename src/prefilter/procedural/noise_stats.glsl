@@ -8,3 +8,13 @@ const vec4 NS_FALL_A = vec4(1.626297, 0.000000, 0.000000, 0.058597);
 const vec4 NS_FALL_B = vec4(0.000000, 0.000000, 0.000000, 0.056607);
 const vec4 NS_FALL_C = vec4(0.220682, 0.086252, 0.123082, 0.095695);
 const vec4 NS_FALL_D = vec4(0.000000, 0.437582, 0.333809, 0.000000);
+
+// F(rho1) F(rho2) of (beta, kappa, gamma, 1 - lambda) for the squared axis lengths x1 = rho1^2,
+// x2 = rho2^2. x is capped where every F is 0 to float precision, so that neither product overflows.
+vec4 ns_fall(float x1, float x2) {
+    vec2 x = min(vec2(x1, x2), vec2(1e12));
+    vec4 nx = 1.0 + NS_FALL_A * x.x, ny = 1.0 + NS_FALL_A * x.y;
+    vec4 dx = nx + x.x * (NS_FALL_D + NS_FALL_B * sqrt(x.x) + NS_FALL_C * x.x);
+    vec4 dy = ny + x.y * (NS_FALL_D + NS_FALL_B * sqrt(x.y) + NS_FALL_C * x.y);
+    return (nx * ny) / (dx * dy);
+}

@@ -235,7 +235,21 @@ def glsl_source(stats: NoiseStats) -> str:
     for index, constant in enumerate(("NS_FALL_A", "NS_FALL_B", "NS_FALL_C", "NS_FALL_D")):
         values = ", ".join(f"{fit[index]:.6f}" for fit in fits.values())
         lines.append(f"const vec4 {constant} = vec4({values});")
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines) + "\n" + _GLSL_FALL
+
+
+# The fits' evaluation, shared by procedural/hart.glsl (all four) and microsurface/heightfield.glsl (β).
+_GLSL_FALL = """
+// F(rho1) F(rho2) of (beta, kappa, gamma, 1 - lambda) for the squared axis lengths x1 = rho1^2,
+// x2 = rho2^2. x is capped where every F is 0 to float precision, so that neither product overflows.
+vec4 ns_fall(float x1, float x2) {
+    vec2 x = min(vec2(x1, x2), vec2(1e12));
+    vec4 nx = 1.0 + NS_FALL_A * x.x, ny = 1.0 + NS_FALL_A * x.y;
+    vec4 dx = nx + x.x * (NS_FALL_D + NS_FALL_B * sqrt(x.x) + NS_FALL_C * x.x);
+    vec4 dy = ny + x.y * (NS_FALL_D + NS_FALL_B * sqrt(x.y) + NS_FALL_C * x.y);
+    return (nx * ny) / (dx * dy);
+}
+"""
 
 
 def main() -> int:
