@@ -7,6 +7,7 @@ from prefilter import PrefilterError
 from prefilter.gl.context import gl_context
 from prefilter.gl.evaluate import glsl_eval
 from prefilter.gl.render import Renderer
+from prefilter.normals import peak_texels
 from prefilter.normals.horizon import horizon_slopes, visible
 from prefilter.normals.material import NormalsMaterial, pack_atlas
 from prefilter.normals.normal_maps import SurfaceMap, generate, write_normal_map
@@ -124,6 +125,60 @@ def test_glsl_lobe_and_visibility_match_the_numpy_oracles():
     np.testing.assert_allclose(soft, np.clip((s - 0.25) / 0.5, 0, 1), atol=1e-4)
 
 
+def test_packed_peak_texels_keep_every_field_within_its_step_in_numpy_and_glsl():
+    """Oracle: the peaks that went in. Every packed word is a normal float (it must survive float32
+    textures and EXR files), and what the shader unpacks is each input within half its code step."""
+    rng = np.random.default_rng(7)
+    n = 500
+    d = rng.normal(size=(n, 3))
+    d[:, 2] = np.abs(d[:, 2])
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    d[:3] = [(0, 0, 1), (1, 0, 0), (0, -1, 0)]
+    amplitude = rng.uniform(0, 1.5, n)
+    amplitude[:2] = (0.0, 1.5)
+    exponent = np.concatenate([[0.0, 1.0, 150.0, 255.0], np.exp(rng.uniform(0, np.log(2e4), n - 4))])
+    horizon = np.concatenate([rng.uniform(-0.7, 3.0, (n, 4)), rng.uniform(0, 0.8, (n, 4))], axis=1)
+    scales = peak_texels.scales_for(amplitude, horizon)
+    texels = peak_texels.encode(d[:, :2], amplitude, exponent, horizon, scales)
+    float_exponent = (texels.view(np.uint32) >> 23) & 255
+    assert np.isfinite(texels).all() and float_exponent.min() >= 64 and float_exponent.max() <= 127
+
+    fields = {}
+    for which in range(4):
+        fields[which] = glsl_eval(
+            f"fieldOf(t, {which})",
+            {"t": texels},
+            4,
+            includes=INCLUDES,
+            defines={"ND_SHADOWING": True},
+            uniforms=scales.uniforms(),
+            prelude="""
+            vec4 fieldOf(vec4 t, int which) {
+                NdPeak p = nd_unpackPeak(t);
+                if (which == 0) return vec4(p.direction, p.amplitude);
+                if (which == 1) return vec4(p.exponent, 0.0, 0.0, 0.0);
+                if (which == 2) return p.mean;
+                return p.deviation;
+            }""",
+        )
+    numpy = peak_texels.decode(texels, scales)
+    shader = {
+        "direction": fields[0][:, :3],
+        "amplitude": fields[0][:, 3],
+        "exponent": fields[1][:, 0],
+        "mean": fields[2],
+        "deviation": fields[3],
+    }
+    for got in (shader, numpy):
+        np.testing.assert_allclose(got["direction"][:, :2], d[:, :2], atol=0.5 / 1023 + 1e-6)
+        np.testing.assert_allclose(got["direction"][:3], d[:3], atol=1e-6)  # the pole and the horizon
+        np.testing.assert_allclose(got["amplitude"], amplitude, atol=scales.amplitude_step / 2 + 1e-6)
+        np.testing.assert_allclose(got["exponent"][:4], exponent[:4], rtol=1e-6)  # integers up to 256
+        np.testing.assert_allclose(1 + got["exponent"], 1 + exponent, rtol=2.0**-8 + 1e-6)
+        np.testing.assert_allclose(got["mean"], horizon[:, :4], atol=scales.mean_step / 2 + 1e-6)
+        np.testing.assert_allclose(got["deviation"], horizon[:, 4:], atol=scales.std_step / 2 + 1e-6)
+
+
 def test_exact_texels_collect_their_own_horizons():
     surface = generate("hemispheres", size=(16, 16), count=(2, 2))
     pyramid = build_pyramid(surface, PyramidOptions(tile=8), scheduler="synchronous")
@@ -236,10 +291,12 @@ def test_npot_map_bakes_packs_and_renders(tmp_path):
     assert [p.shape[:2] for p in pyramid.peaks] == [(h, w) for w, h in level_sizes(48, 20)]
     for level in pyramid.peaks:
         np.testing.assert_allclose(level[..., 3].sum(-1), 1.0, atol=0.1)
-    atlas, boxes = pack_atlas(pyramid, shadowing=True)
+    atlas, boxes, scales = pack_atlas(pyramid, shadowing=True)
     assert atlas.shape[:2] == (22, 72) and len(boxes) == 7  # levels >= 1 stack to 10+5+3+2+1+1 rows
+    amplitudes = peak_texels.decode(atlas, scales)["amplitude"]
     for (x, y, w, h), level in zip(boxes.astype(int), pyramid.peaks, strict=True):
-        np.testing.assert_array_equal(atlas[y : y + h, x : x + w, :7, 2], level[..., 3])
+        block = amplitudes[y : y + h, x : x + w]
+        np.testing.assert_allclose(block, level[..., 3], atol=scales.amplitude_step / 2)
     material = (
         'type = "normal-map"\nshadowing = true\n[object.material.generator]\n'
         'name = "stochastic"\nsize = [48, 20]\nrms_slope = 0.4'

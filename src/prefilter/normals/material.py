@@ -33,6 +33,7 @@ import numpy as np
 
 from prefilter import PrefilterError
 from prefilter.gl.uniforms import bind_samplers, set_uniforms
+from prefilter.normals import peak_texels
 from prefilter.normals.normal_maps import GENERATORS, SurfaceMap, load_surface
 from prefilter.normals.peaks import lobe
 from prefilter.normals.pyramid import NormalPyramid, PyramidOptions, build_pyramid
@@ -125,7 +126,7 @@ class NormalsMaterial:
     # -- GPU ------------------------------------------------------------------------------------------
     def upload(self, ctx: moderngl.Context, mesh) -> dict:
         pyramid = self.pyramid()
-        atlas, boxes = pack_atlas(pyramid, self.shadowing)
+        atlas, boxes, scales = pack_atlas(pyramid, self.shadowing)
         h, w, layers = atlas.shape[0], atlas.shape[1], atlas.shape[2]
         peaks = ctx.texture_array(
             (w, h, layers), 4, np.ascontiguousarray(atlas.transpose(2, 0, 1, 3)), dtype="f4"
@@ -143,6 +144,7 @@ class NormalsMaterial:
             "nd_levelAlike": alike,
             "nd_levelCount": len(boxes),
             "nd_maxPeaks": pyramid.max_peaks,
+            **scales.uniforms(),
         }
         return {"textures": textures, "uniforms": uniforms}
 
@@ -215,14 +217,25 @@ def _mipmapped(ctx: moderngl.Context, data: np.ndarray) -> moderngl.Texture:
     return texture
 
 
-def pack_atlas(pyramid: NormalPyramid, shadowing: bool) -> tuple[np.ndarray, np.ndarray]:
-    """(H, W, layers, 4) float32 atlas of every level (normal_pyramid.glsl); level boxes (x, y, w, h)."""
+def pack_atlas(
+    pyramid: NormalPyramid, shadowing: bool
+) -> tuple[np.ndarray, np.ndarray, peak_texels.PeakScales]:
+    """(H, W, K, 4) float32 atlas of every level, one texel per peak (normal_pyramid.glsl, packed with its
+    horizon statistics when shadowing: peak_texels.py); level boxes (x, y, w, h); the packed codes' steps."""
     sizes = pyramid.sizes
     k = pyramid.max_peaks
-    layers = 3 * k if shadowing else k
     width = sizes[0][0] + (sizes[1][0] if len(sizes) > 1 else 0)
     height = max(sizes[0][1], sum(h for _, h in sizes[1:]))
-    atlas = np.zeros((height, width, layers, 4), np.float32)
+    horizon = pyramid.horizon if shadowing else None
+    if shadowing:
+        assert horizon is not None
+    scales = peak_texels.PeakScales()
+    if horizon is not None:
+        amplitudes = np.concatenate([p[..., 3].ravel() for p in pyramid.peaks])
+        scales = peak_texels.scales_for(amplitudes, np.concatenate([h.reshape(-1, 8) for h in horizon]))
+    empty = np.zeros((height, width, k))
+    no_horizon = None if horizon is None else np.zeros((height, width, k, 8))
+    atlas = peak_texels.encode(np.zeros((height, width, k, 2)), empty, empty, no_horizon, scales)
     boxes = []
     y = 0
     for level, (lw, lh) in enumerate(sizes):
@@ -234,18 +247,13 @@ def pack_atlas(pyramid: NormalPyramid, shadowing: bool) -> tuple[np.ndarray, np.
         below = d[..., 2] < 0  # fitted directions are kept on or above the surface
         d[..., 2] = np.where(below, 0.0, d[..., 2])
         d /= np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)
-        block = atlas[y0 : y0 + lh, x0 : x0 + lw]
-        block[:, :, :k, 0:2] = d[..., :2]
-        block[:, :, :k, 2] = p[..., 3]
-        block[:, :, :k, 3] = p[..., 4]
-        if shadowing:
-            assert pyramid.horizon is not None
-            block[:, :, k : 2 * k] = pyramid.horizon[level][..., :4]
-            block[:, :, 2 * k :] = pyramid.horizon[level][..., 4:]
+        atlas[y0 : y0 + lh, x0 : x0 + lw] = peak_texels.encode(
+            d[..., :2], p[..., 3], p[..., 4], None if horizon is None else horizon[level], scales
+        )
         boxes.append((x0, y0, lw, lh))
     if len(boxes) > MAX_LEVELS:
         raise PrefilterError(f"normal map of {sizes[0][0]}x{sizes[0][1]} has more than {MAX_LEVELS} levels")
-    return atlas, np.array(boxes, np.float32)
+    return atlas, np.array(boxes, np.float32), scales
 
 
 def constant_pyramid(

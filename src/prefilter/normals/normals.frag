@@ -98,14 +98,9 @@ void nd_addTexel(int level, ivec2 texel, float weight) {
     ivec3 at = nd_atlasTexel(level, texel, 0);
     for (int k = 0; k < 16; ++k) {
         if (k >= nd_maxPeaks) break;
-        vec4 p = texelFetch(nd_peaks, at + ivec3(0, 0, k), 0);
-        if (p.z <= 0.0) break;
-        vec4 mean = vec4(0.0), deviation = vec4(0.0);
-#ifdef ND_SHADOWING
-        mean = texelFetch(nd_peaks, at + ivec3(0, 0, nd_maxPeaks + k), 0);
-        deviation = texelFetch(nd_peaks, at + ivec3(0, 0, 2 * nd_maxPeaks + k), 0);
-#endif
-        nd_addPeak(nd_direction(p), weight * p.z, p.w, mean, deviation);
+        NdPeak p = nd_unpackPeak(texelFetch(nd_peaks, at + ivec3(0, 0, k), 0));
+        if (p.amplitude <= 0.0) break;
+        nd_addPeak(p.direction, weight * p.amplitude, p.exponent, p.mean, p.deviation);
     }
 }
 
@@ -117,12 +112,10 @@ void nd_addPoint(vec2 uv, float weight) {
     vec3 normal = vec3(0.0);
     vec4 mean = vec4(0.0);
     for (int c = 0; c < 4; ++c) {
-        ivec2 texel = t0 + ivec2(c % 2, c / 2);
         float w = nd_bilinearWeight(f, c);
-        normal += w * nd_direction(nd_fetch(0, texel, 0));
-#ifdef ND_SHADOWING
-        mean += w * nd_fetch(0, texel, nd_maxPeaks);
-#endif
+        NdPeak base = nd_unpackPeak(nd_fetch(0, t0 + ivec2(c % 2, c / 2), 0));
+        normal += w * base.direction;
+        mean += w * base.mean;
     }
     nd_addPeak(normalize(normal), weight, u_exponent, mean, vec4(0.0));
 }
