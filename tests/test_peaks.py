@@ -257,6 +257,26 @@ def test_fit_recovers_known_peaks():
         assert peaks.exponents[k] == pytest.approx(n, rel=0.05)
 
 
+def test_fit_model_jacobian_matches_central_differences_of_its_residual():
+    """Oracle: central differences of the residual, for the compiled Jacobian the solver steps with."""
+    from prefilter.normals.peaks import _Model
+
+    model = _Model(GRID.directions, GRID.solid_angles, (1.0, 1e4))
+    rng = np.random.default_rng(3)
+    x = np.concatenate(
+        [model.pack(tilted(t, p), a, n) for t, p, a, n in ((10, 30, 0.5, 40.0), (40, 250, 0.3, 300.0))]
+    )
+    y = rng.uniform(0, 1, GRID.size)
+    jacobian = model.jacobian(x, y)
+    for k in range(x.size):
+        h = 1e-6 * max(1.0, abs(x[k]))
+        up, down = x.copy(), x.copy()
+        up[k] += h
+        down[k] -= h
+        numeric = (model.residual(up, y) - model.residual(down, y)) / (2 * h)
+        np.testing.assert_allclose(jacobian[:, k], numeric, atol=1e-6 * np.abs(numeric).max() + 1e-9)
+
+
 def fig2_normals(count=200, seed=5):
     """Fournier's Fig. 2: half the normals tilted +30° about y, half −30°, with 0.1° of jitter."""
     rng = np.random.default_rng(seed)
