@@ -45,7 +45,7 @@ from prefilter.normals.horizon import horizon_slopes
 from prefilter.normals.normal_maps import SurfaceMap
 from prefilter.normals.peaks import HemisphereGrid, exact_peaks, fit_peaks, lobe
 
-PYRAMID_VERSION = 3
+PYRAMID_VERSION = 4  # bump when the bake's results change (4: the compiled Levenberg–Marquardt of peaks.py)
 
 
 @dataclass(frozen=True)
