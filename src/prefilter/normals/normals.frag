@@ -46,6 +46,8 @@ out vec4 o_colour;
 vec3 g_light[ND_LIGHTS];
 vec3 g_half[ND_LIGHTS];
 vec3 g_view;
+vec4 g_lightSlopes[ND_LIGHTS];  // nd_horizonSlopes of each light and of the view, for every peak's test
+vec4 g_viewSlopes;
 
 // The shading is linear in the peaks (phong_peaks.glsl), so they are summed into scalars per light and
 // turned into a colour once: Σ a M (ambient), Σ a M V max(d·l, 0) and Σ a M V lobe(d·h) per light.
@@ -66,12 +68,14 @@ void nd_clear() {
 void nd_addPeak(vec3 d, float a, float n, vec4 mean, vec4 deviation) {
     g_peaks += 1.0;
 #ifdef ND_SHADOWING
-    a *= nd_visibility(g_view, mean, deviation);
+    vec4 low = mean - deviation;
+    vec4 inverseWidth = 1.0 / max(2.0 * deviation, vec4(1e-12));
+    a *= nd_visibleSlopes(g_viewSlopes, low, inverseWidth);
 #endif
     g_ambient += a;
     for (int i = 0; i < ND_LIGHTS; ++i) {
 #ifdef ND_SHADOWING
-        float visible = a * nd_visibility(g_light[i], mean, deviation);
+        float visible = a * nd_visibleSlopes(g_lightSlopes[i], low, inverseWidth);
 #else
         float visible = a;
 #endif
@@ -154,7 +158,9 @@ void main() {
     for (int i = 0; i < ND_LIGHTS; ++i) {
         g_light[i] = tangentFromWorld * sh_lightDirection[i];
         g_half[i] = normalize(g_light[i] + g_view);
+        g_lightSlopes[i] = nd_horizonSlopes(g_light[i]);
     }
+    g_viewSlopes = nd_horizonSlopes(g_view);
     nd_clear();
     vec2 uv = v_uv * u_uvScale;
     vec3 colour;
