@@ -281,48 +281,6 @@ def _lobes_jacobian(dirs, sqrt_w, x, lo, hi):
     return jac
 
 
-class _Model:
-    """Sum of k normalised Phong lobes on the grid, residuals sqrt(Ω)(fit − y), analytic Jacobian
-    (compiled: these two are where a fit spends its time).
-
-    Parameters per peak, x.reshape(k, 4) = (p, q, s, t): d = (p, q, 1)/|(p, q, 1)|, a = exp(s),
-    log n = lo + (hi − lo) sigmoid(t).
-    """
-
-    def __init__(self, directions, solid_angles, exponent_range):
-        self.dirs = np.ascontiguousarray(directions, dtype=np.float64)
-        self.sqrt_w = np.sqrt(solid_angles)
-        self.lo, self.hi = float(np.log(exponent_range[0])), float(np.log(exponent_range[1]))
-
-    def pack(self, d, a, n):
-        d = np.atleast_2d(d)
-        a, n = np.atleast_1d(a), np.atleast_1d(n)
-        z = np.maximum(d[:, 2], 1e-3)
-        frac = np.clip((np.log(n) - self.lo) / (self.hi - self.lo), 0.02, 0.98)
-        t = np.log(frac / (1.0 - frac))
-        return np.stack([d[:, 0] / z, d[:, 1] / z, np.log(a), t], axis=1).reshape(-1)
-
-    def unpack(self, x):
-        """Directions (k, 3), amplitudes (k,), exponents (k,)."""
-        p, q, s, t = x.reshape(-1, 4).T
-        r = np.sqrt(1.0 + p * p + q * q)
-        d = np.stack([p, q, np.ones_like(p)], axis=1) / r[:, None]
-        n = np.exp(self.lo + (self.hi - self.lo) * expit(t))
-        a = np.exp(np.clip(s, *_LOG_AMPLITUDE_RANGE))
-        return d, a, n
-
-    def evaluate(self, x):
-        """Model D at the samples."""
-        ones = np.ones(len(self.dirs))
-        return _lobes_residual(self.dirs, ones, x, self.lo, self.hi, np.zeros(len(self.dirs)))
-
-    def residual(self, x, y):
-        return _lobes_residual(self.dirs, self.sqrt_w, x, self.lo, self.hi, y)
-
-    def jacobian(self, x, y):
-        return _lobes_jacobian(self.dirs, self.sqrt_w, x, self.lo, self.hi)
-
-
 def _guess(values, grid: HemisphereGrid, exponent_range):
     """First guess of one peak at the maximum of `values` (§2.3) -> (d, a, n), or None if max <= 0."""
     j = int(np.argmax(values))
@@ -427,10 +385,51 @@ def _levenberg_marquardt(dirs, sqrt_w, y, x0, lo, hi, max_nfev, tol):
     return x
 
 
-def _solve(model: _Model, x, values, max_nfev):
-    """Levenberg–Marquardt from `x`; 1e-3 relative tolerances are ample for 5 % stopping rules."""
-    y = np.ascontiguousarray(values, dtype=np.float64)
-    return _levenberg_marquardt(model.dirs, model.sqrt_w, y, x, model.lo, model.hi, max_nfev, _LSQ_TOL)
+class _Model:
+    """Sum of k normalised Phong lobes on the grid, residuals sqrt(Ω)(fit − y), analytic Jacobian
+    (compiled: these two are where a fit spends its time).
+
+    Parameters per peak, x.reshape(k, 4) = (p, q, s, t): d = (p, q, 1)/|(p, q, 1)|, a = exp(s),
+    log n = lo + (hi − lo) sigmoid(t).
+    """
+
+    def __init__(self, directions, solid_angles, exponent_range):
+        self.dirs = np.ascontiguousarray(directions, dtype=np.float64)
+        self.sqrt_w = np.sqrt(solid_angles)
+        self.lo, self.hi = float(np.log(exponent_range[0])), float(np.log(exponent_range[1]))
+
+    def pack(self, d, a, n):
+        d = np.atleast_2d(d)
+        a, n = np.atleast_1d(a), np.atleast_1d(n)
+        z = np.maximum(d[:, 2], 1e-3)
+        frac = np.clip((np.log(n) - self.lo) / (self.hi - self.lo), 0.02, 0.98)
+        t = np.log(frac / (1.0 - frac))
+        return np.stack([d[:, 0] / z, d[:, 1] / z, np.log(a), t], axis=1).reshape(-1)
+
+    def unpack(self, x):
+        """Directions (k, 3), amplitudes (k,), exponents (k,)."""
+        p, q, s, t = x.reshape(-1, 4).T
+        r = np.sqrt(1.0 + p * p + q * q)
+        d = np.stack([p, q, np.ones_like(p)], axis=1) / r[:, None]
+        n = np.exp(self.lo + (self.hi - self.lo) * expit(t))
+        a = np.exp(np.clip(s, *_LOG_AMPLITUDE_RANGE))
+        return d, a, n
+
+    def evaluate(self, x):
+        """Model D at the samples."""
+        ones = np.ones(len(self.dirs))
+        return _lobes_residual(self.dirs, ones, x, self.lo, self.hi, np.zeros(len(self.dirs)))
+
+    def residual(self, x, y):
+        return _lobes_residual(self.dirs, self.sqrt_w, x, self.lo, self.hi, y)
+
+    def jacobian(self, x):
+        return _lobes_jacobian(self.dirs, self.sqrt_w, x, self.lo, self.hi)
+
+    def solve(self, x, y, max_nfev):
+        """Levenberg–Marquardt from `x` to the data `y` at the samples, tolerances _LSQ_TOL."""
+        y = np.ascontiguousarray(y, dtype=np.float64)
+        return _levenberg_marquardt(self.dirs, self.sqrt_w, y, x, self.lo, self.hi, max_nfev, _LSQ_TOL)
 
 
 def fit_peaks(
@@ -478,7 +477,7 @@ def fit_peaks(
         rows = np.flatnonzero((values > negligible) | (full.evaluate(x) > negligible))
         if rows.size < 8 * x.size:  # too few samples for a well-posed fit: use them all
             rows = np.arange(grid.size)
-        x = _solve(_Model(grid.directions[rows], weights[rows], exponent_range), x, values[rows], max_nfev)
+        x = _Model(grid.directions[rows], weights[rows], exponent_range).solve(x, values[rows], max_nfev)
         fit = full.evaluate(x)
         r = fit - values
         rms = float(np.sqrt(np.sum(weights * r * r) / data_ss))
