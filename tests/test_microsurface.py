@@ -113,6 +113,51 @@ def test_march_finds_the_first_hit(elevation):
     assert misses.mean() <= 1 / 64, (got[misses], expected[misses])
 
 
+SHADOW_PROFILE_PRELUDE = """
+vec3 onSurface(vec3 p) { return vec3(p.x, ms_surfaceHeight(vec3(p.x, 0.0, p.z)), p.z); }
+vec4 profileTest(vec3 c, vec3 delta, vec3 l) {
+    ms_setWeights(vec3(0.0), vec3(0.0), true);
+    float spacing = length(delta);
+    vec3 q = onSurface(c);
+    vec3 qk = onSurface(c + delta);
+    vec4 profile = ms_shadowProfile(q, l, 768, ms_slopeBound * spacing, spacing / length(l.xz));
+    vec4 centre = ms_shadowProfile(q, l, 768, 0.0, 0.0);
+    float clearance = profile.x + (qk.y - q.y) - dot(profile.yzw, delta);
+    return vec4(clearance > 0.0 ? 1.0 : 0.0, ms_shadow(qk, l, 768), ms_shadow(q, l, 768),
+                centre.x > 0.0 ? 1.0 : 0.0);
+}
+"""
+
+
+@pytest.mark.parametrize("elevation", [10.0, 20.0, 35.0])
+def test_shadow_profile_predicts_the_shadow_rays_of_nearby_points(elevation):
+    """One ray's profile (ms_shadowProfile) against the oracle of a shadow ray marched from each point
+    q + δ of the surface itself: it must get most of what the centre's own shadow gets wrong for them
+    (measured: 42-53 % fewer wrong points for |δ| up to half the finest octave's cell), and with
+    reach = skip = 0 it must be the centre's shadow ray."""
+    n = 2000
+    c = np.zeros((n, 3))
+    c[:, 0], c[:, 2] = RNG.uniform(-3, 3, (2, n))
+    azimuth = RNG.uniform(0, 2 * np.pi, (2, n))
+    radius = 0.03 * np.sqrt(RNG.uniform(0, 1, n))  # the finest octave's cell is 1/16
+    delta = np.stack([radius * np.cos(azimuth[0]), np.zeros(n), radius * np.sin(azimuth[0])], 1)
+    cos_e, sin_e = np.cos(np.radians(elevation)), np.sin(np.radians(elevation))
+    light = np.stack([cos_e * np.cos(azimuth[1]), np.full(n, sin_e), cos_e * np.sin(azimuth[1])], 1)
+    got = glsl_eval(
+        "profileTest(c, delta, l)",
+        {"c": c, "delta": delta, "l": light},
+        4,
+        includes=INCLUDES,
+        uniforms=_uniforms(),
+        prelude=SHADOW_PROFILE_PRELUDE,
+    )
+    predicted, truth, centre, centre_profile = got.T
+    assert 0.05 < 1 - truth.mean() < 0.8  # some shadow, some light
+    assert (centre_profile != centre).mean() <= 0.005
+    wrong, wrong_centre = (predicted != truth).mean(), (centre != truth).mean()
+    assert wrong <= 0.75 * wrong_centre, (wrong, wrong_centre)
+
+
 # --- the filtered pipeline in GLSL against Heitz and Neyret's closed form ----------------------------------
 
 

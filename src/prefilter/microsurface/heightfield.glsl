@@ -331,3 +331,46 @@ float ms_shadow(vec3 q, vec3 l, int maxSteps) {
     slab.x = max(2e-3 * ms_heightBound, 2.0 * eps);
     return ms_march(o, l, slab, maxSteps, false) < 0.0 ? 1.0 : 0.0;
 }
+
+// The shadow ray towards l of a pixel's shading samples, from one ray (beyond the paper; surface-filter).
+// A sample's ray leaves the coarse surface at q + δ, Δh above q, and runs parallel to the ray from q; where
+// the ray from q passes the point x its clearance is c(x), and the sample's is c(x) + Δh - ∇h(x)·δ to
+// first order in δ. The ray from q is marched as ms_march does but does not stop at an occluder: it goes
+// on through it, in steps of at least reach / 2, until its clearance falls below -reach (no sample can
+// pass then: reach bounds |∇h·δ| over the samples). Returns (least clearance c*, ∇h at its point x*) over
+// the path beyond `skip` (nearer than the samples lie apart, the relief is each sample's own facet,
+// which its Lambert term sees), or (1e30, 0) if nothing comes within reach; a sample at (δ, Δh) is lit
+// when c* + Δh - ∇h(x*)·δ > 0. With reach = skip = 0 this is ms_shadow's answer.
+vec4 ms_shadowProfile(vec3 q, vec3 l, int maxSteps, float reach, float skip) {
+    vec4 none = vec4(1e30, 0.0, 0.0, 0.0);
+    float eps = 2e-6 * (length(q) + 1.0);
+    if (ms_heightBound <= 8.0 * eps) return none;
+    vec3 n = ms_macroNormal(q);
+    vec3 o = q + n * (max(-ms_gap(q), 0.0) + max(1e-3 * ms_heightBound, eps));
+    vec3 slab = ms_slab(o, l, ms_heightBound);
+    if (slab.y <= slab.x) return none;
+    float t = max(2e-3 * ms_heightBound, 2.0 * eps);
+    float minStep = 2e-4 * max(ms_heightBound, 1e-6);
+    float least = reach;
+    vec3 at = vec3(0.0);
+    for (int i = 0; i < maxSteps; ++i) {
+        ms_steps += 1;
+        vec3 x = o + t * l;
+        float gap = ms_gapBound(x);  // exact where <= 0; where it is looser the ray is well clear
+        if (t > skip && gap < least) {
+            least = gap;
+            at = x;
+            if (least < -reach) break;
+        }
+        float dn = abs(dot(l, ms_macroNormal(x)));
+        float rate = dn + ms_slopeBound * sqrt(max(1.0 - dn * dn, 0.0));
+        t += max((gap > 0.0 ? MS_RELAX * gap : max(-gap, 0.5 * reach)) / max(rate, 1e-6), minStep);
+        if (t >= slab.y) break;
+    }
+    if (least >= reach) return none;
+    vec4 fg = ms_fractalGrad(ms_project(at), 0, ms_heightOctaves);
+#ifdef MS_TRANSFER
+    fg.xyz *= ms_transfer(fg.w, ms_transferSigma).z;  // ∇E[g(f)] = E[g'] ∇f
+#endif
+    return vec4(least, fg.xyz);
+}
