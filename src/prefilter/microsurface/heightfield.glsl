@@ -43,6 +43,7 @@ float ms_heightVariance;   // σ_h² of the unresolved octaves
 float ms_slopeVariance;    // per tangent axis: Σ = ms_slopeVariance · I
 float ms_coarseHeightVariance;  // the same of the coarse (rendered) surface: Σ w² a² Var n
 float ms_coarseSlopeVariance;
+float ms_coarseFrequency;  // sqrt(Σ w² a² f⁴ / Σ w² a² f²): how fast the coarse surface's slopes change
 // Smith's Λ for a fractal: the slope variance it sees, octave k's slopes weighted by ms_octaveMasking[k]
 // = g(log2(f_k / f_0)) (microsurface/fractal_masking.py: G, fitted to ray casts)
 float ms_maskingSlopeVariance;        // of the whole surface
@@ -84,6 +85,7 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
     ms_textureVariance = 0.0;
     ms_heightBound = 0.0;
     ms_slopeBound = 0.0;
+    float curvatureMoment = 0.0;
     vec3 lx = ms_latticeFromObject * dpdx;
     vec3 ly = ms_latticeFromObject * dpdy;
     for (int i = 0; i < 2 * MS_MAX_OCTAVES; ++i) {
@@ -102,6 +104,7 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
             ms_slopeVariance += residual * af.y * af.y * MS_GRADIENT_VARIANCE;
             ms_coarseHeightVariance += w * w * af.x * af.x * MS_NOISE_VARIANCE;
             ms_coarseSlopeVariance += w * w * af.x * af.x * af.y * af.y * MS_GRADIENT_VARIANCE;
+            curvatureMoment += w * w * af.x * af.x * af.y * af.y * af.y * af.y * MS_GRADIENT_VARIANCE;
             float masking = ms_octaveMasking[k] * af.x * af.x * af.y * af.y * MS_GRADIENT_VARIANCE;
             ms_maskingSlopeVariance += masking;
             ms_coarseMaskingSlopeVariance += w * w * masking;
@@ -111,6 +114,7 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
             ms_textureVariance += residual * MS_NOISE_VARIANCE;
         }
     }
+    ms_coarseFrequency = sqrt(curvatureMoment / max(ms_coarseSlopeVariance, 1e-30));
 #ifdef MS_TRANSFER
     ms_transferSigma = sqrt(ms_heightVariance);
     ms_heightBound = u_transferBound.x;
