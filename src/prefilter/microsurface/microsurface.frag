@@ -366,7 +366,7 @@ void main() {
     float linearity = 1.0 - smoothstep(0.5, 2.0, spacing * ms_coarseFrequency);
     spacing *= linearity;
     float shadowReach = ms_slopeBound * spacing;
-    float qHeight = ms_surfaceHeight(p);  // the marched surface at q (q itself is off it by the march's tolerance)
+    float qHeight = 0.0;  // the marched surface's height at q (q is off it by the march's tolerance); with the rays
     // The whole footprint's split: the coarse (marched) surface and the driver's unresolved variances.
     MsFootprint footprint;
     footprint.marchedCov = vec3(ms_coarseSlopeVariance, 0.0, ms_coarseSlopeVariance);
@@ -457,10 +457,11 @@ void main() {
                 float skip = spacing / max(length(wi.xy), 0.1);
 #if MS_SHADING_SAMPLES > 1
                 ms_setWeights(dpdx, dpdy, false);  // the marched surface casts them
+#endif
+                qHeight = ms_surfaceHeight(p);
                 shadows[j] = ms_shadowProfile(q, l, MS_SHADOW_STEPS, shadowReach, skip);
+#if MS_SHADING_SAMPLES > 1
                 ms_setWeights(sub * dpdx, sub * dpdy, false);
-#else
-                shadows[j] = ms_shadowProfile(q, l, MS_SHADOW_STEPS, shadowReach, skip);
 #endif
             }
 #if MS_SHADING_SAMPLES > 1
