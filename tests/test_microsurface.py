@@ -158,6 +158,48 @@ def test_shadow_profile_predicts_the_shadow_rays_of_nearby_points(elevation):
     assert wrong <= 0.75 * wrong_centre, (wrong, wrong_centre)
 
 
+SHADOW_STEP_PRELUDE = """
+vec4 shadowStepTest(vec3 c, vec3 l, float leastStep) {
+    ms_setWeights(vec3(0.0), vec3(0.0), true);
+    vec3 q = vec3(c.x, ms_surfaceHeight(vec3(c.x, 0.0, c.z)), c.z);
+    ms_shadowStep = 0.0;
+    ms_steps = 0;
+    float exact = ms_shadow(q, l, 768);
+    float exactSteps = float(ms_steps);
+    ms_shadowStep = leastStep;
+    ms_steps = 0;
+    return vec4(exact, ms_shadow(q, l, 768), exactSteps, float(ms_steps));
+}
+"""
+
+
+@pytest.mark.parametrize("elevation", [5.0, 20.0])
+def test_pixel_sized_shadow_steps_keep_the_shadows_and_save_steps(elevation):
+    """The filtered modes' least shadow step (ms_shadowStep, a quarter of a pixel) against the shadow ray
+    that resolves the relief to 2e-4 of its height (itself checked against dense scans above): a step of a
+    quarter of the finest octave's cell (1/64; coarser than the filtered modes ever take, whose finest
+    rendered octave spans a pixel or more) flips at most 2 % of the answers and takes under half the
+    steps (measured: 1.0-1.2 % and 0.3-0.4x at 5-35 degrees)."""
+    n = 2000
+    c = np.zeros((n, 3))
+    c[:, 0], c[:, 2] = RNG.uniform(-3, 3, (2, n))
+    azimuth = RNG.uniform(0, 2 * np.pi, n)
+    cos_e, sin_e = np.cos(np.radians(elevation)), np.sin(np.radians(elevation))
+    light = np.stack([cos_e * np.cos(azimuth), np.full(n, sin_e), cos_e * np.sin(azimuth)], 1)
+    got = glsl_eval(
+        "shadowStepTest(c, l, s)",
+        {"c": c, "l": light, "s": np.full(n, 1 / 64)},
+        4,
+        includes=INCLUDES,
+        uniforms=_uniforms(),
+        prelude=SHADOW_STEP_PRELUDE,
+    )
+    exact, stepped, exact_steps, steps = got.T
+    assert 0.05 < 1 - exact.mean() < 0.95  # some shadow, some light
+    assert (exact != stepped).mean() <= 0.02
+    assert steps.mean() < 0.5 * exact_steps.mean()
+
+
 # --- the filtered pipeline in GLSL against Heitz and Neyret's closed form ----------------------------------
 
 

@@ -277,6 +277,13 @@ vec3 ms_slab(vec3 o, vec3 d, float bound) {
 #endif
 }
 
+// The least step of shadow rays (beyond the paper; set by the filtered modes): a shadow decides the light of
+// a whole pixel, so its ray need not resolve the relief it grazes finer than a share of the pixel. Near
+// the terminator a ray that skims the relief shrank its steps with the gap (2e-4 of the relief's height
+// at least) and spent most of the frame there. A crossing is still caught; what a step can jump is a
+// sliver of relief thinner than it. 0 (the point mode, the reference): the relief-relative floor alone.
+float ms_shadowStep = 0.0;
+
 // First t in [t0, t1] = slab.xy where the ray o + t d (|d| = 1) meets the surface, or -1. Steps are the gap over
 // the largest rate at which the gap can shrink, |d·n| + slopeBound |d_tangent|; a crossing is refined by
 // five secant steps. After maxSteps without a crossing a primary ray returns its current t (just above
@@ -297,7 +304,7 @@ float ms_march(vec3 o, vec3 d, vec3 slab, int maxSteps, bool primary) {
         float rate = dn + ms_slopeBound * sqrt(max(1.0 - dn * dn, 0.0));
         tPrev = t;
         gapPrev = gap;
-        t += max(MS_RELAX * gap / max(rate, 1e-6), minStep);
+        t += max(MS_RELAX * gap / max(rate, 1e-6), primary ? minStep : max(minStep, ms_shadowStep));
         if (t > t1) {
             t = t1;
         }
@@ -368,7 +375,7 @@ vec4 ms_shadowProfile(vec3 q, vec3 l, int maxSteps, float reach, float skip) {
         }
         float dn = abs(dot(l, ms_macroNormal(x)));
         float rate = dn + ms_slopeBound * sqrt(max(1.0 - dn * dn, 0.0));
-        t += max((gap > 0.0 ? MS_RELAX * gap : max(-gap, 0.5 * reach)) / max(rate, 1e-6), minStep);
+        t += max((gap > 0.0 ? MS_RELAX * gap : max(-gap, 0.5 * reach)) / max(rate, 1e-6), max(minStep, ms_shadowStep));
         if (t >= slab.y) break;
     }
     if (least >= reach) return none;
