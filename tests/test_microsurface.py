@@ -113,6 +113,20 @@ def test_march_finds_the_first_hit(elevation):
     assert misses.mean() <= 1 / 64, (got[misses], expected[misses])
 
 
+def _shadow_points(n: int, elevation: float) -> tuple[np.ndarray, np.ndarray]:
+    """n points of the macro plane (|x|, |z| < 3) and n light directions at `elevation` degrees, random
+    azimuths."""
+    c = np.zeros((n, 3))
+    c[:, 0], c[:, 2] = RNG.uniform(-3, 3, (2, n))
+    azimuth = RNG.uniform(0, 2 * np.pi, n)
+    cos_e, sin_e = np.cos(np.radians(elevation)), np.sin(np.radians(elevation))
+    return c, np.stack([cos_e * np.cos(azimuth), np.full(n, sin_e), cos_e * np.sin(azimuth)], 1)
+
+
+def _eval_shadows(expression: str, inputs: dict, prelude: str) -> np.ndarray:
+    return glsl_eval(expression, inputs, 4, includes=INCLUDES, uniforms=_uniforms(), prelude=prelude)
+
+
 SHADOW_PROFILE_PRELUDE = """
 vec3 onSurface(vec3 p) { return vec3(p.x, ms_surfaceHeight(vec3(p.x, 0.0, p.z)), p.z); }
 vec4 profileTest(vec3 c, vec3 delta, vec3 l) {
@@ -136,20 +150,12 @@ def test_shadow_profile_predicts_the_shadow_rays_of_nearby_points(elevation):
     (measured: 42-53 % fewer wrong points for |δ| up to half the finest octave's cell), and with
     reach = skip = 0 it must be the centre's shadow ray."""
     n = 2000
-    c = np.zeros((n, 3))
-    c[:, 0], c[:, 2] = RNG.uniform(-3, 3, (2, n))
-    azimuth = RNG.uniform(0, 2 * np.pi, (2, n))
+    c, light = _shadow_points(n, elevation)
+    azimuth = RNG.uniform(0, 2 * np.pi, n)
     radius = 0.03 * np.sqrt(RNG.uniform(0, 1, n))  # the finest octave's cell is 1/16
-    delta = np.stack([radius * np.cos(azimuth[0]), np.zeros(n), radius * np.sin(azimuth[0])], 1)
-    cos_e, sin_e = np.cos(np.radians(elevation)), np.sin(np.radians(elevation))
-    light = np.stack([cos_e * np.cos(azimuth[1]), np.full(n, sin_e), cos_e * np.sin(azimuth[1])], 1)
-    got = glsl_eval(
-        "profileTest(c, delta, l)",
-        {"c": c, "delta": delta, "l": light},
-        4,
-        includes=INCLUDES,
-        uniforms=_uniforms(),
-        prelude=SHADOW_PROFILE_PRELUDE,
+    delta = np.stack([radius * np.cos(azimuth), np.zeros(n), radius * np.sin(azimuth)], 1)
+    got = _eval_shadows(
+        "profileTest(c, delta, l)", {"c": c, "delta": delta, "l": light}, SHADOW_PROFILE_PRELUDE
     )
     predicted, truth, centre, centre_profile = got.T
     assert 0.05 < 1 - truth.mean() < 0.8  # some shadow, some light
@@ -181,18 +187,9 @@ def test_pixel_sized_shadow_steps_keep_the_shadows_and_save_steps(elevation):
     rendered octave spans a pixel or more) flips at most 2 % of the answers and takes under half the
     steps (measured: 1.0-1.2 % and 0.3-0.4x at 5-35 degrees)."""
     n = 2000
-    c = np.zeros((n, 3))
-    c[:, 0], c[:, 2] = RNG.uniform(-3, 3, (2, n))
-    azimuth = RNG.uniform(0, 2 * np.pi, n)
-    cos_e, sin_e = np.cos(np.radians(elevation)), np.sin(np.radians(elevation))
-    light = np.stack([cos_e * np.cos(azimuth), np.full(n, sin_e), cos_e * np.sin(azimuth)], 1)
-    got = glsl_eval(
-        "shadowStepTest(c, l, s)",
-        {"c": c, "l": light, "s": np.full(n, 1 / 64)},
-        4,
-        includes=INCLUDES,
-        uniforms=_uniforms(),
-        prelude=SHADOW_STEP_PRELUDE,
+    c, light = _shadow_points(n, elevation)
+    got = _eval_shadows(
+        "shadowStepTest(c, l, s)", {"c": c, "l": light, "s": np.full(n, 1 / 64)}, SHADOW_STEP_PRELUDE
     )
     exact, stepped, exact_steps, steps = got.T
     assert 0.05 < 1 - exact.mean() < 0.95  # some shadow, some light
