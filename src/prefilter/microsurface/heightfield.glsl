@@ -292,6 +292,7 @@ float ms_march(vec3 o, vec3 d, vec3 slab, int maxSteps, bool primary) {
     float t0 = slab.x;
     float t1 = slab.y;
     float minStep = 2e-4 * max(ms_heightBound, 1e-6);
+    if (!primary) minStep = max(minStep, ms_shadowStep);
     float t = t0;
     float gap = ms_gapBound(o + t * d);
     if (gap <= 0.0) return t;
@@ -304,7 +305,7 @@ float ms_march(vec3 o, vec3 d, vec3 slab, int maxSteps, bool primary) {
         float rate = dn + ms_slopeBound * sqrt(max(1.0 - dn * dn, 0.0));
         tPrev = t;
         gapPrev = gap;
-        t += max(MS_RELAX * gap / max(rate, 1e-6), primary ? minStep : max(minStep, ms_shadowStep));
+        t += max(MS_RELAX * gap / max(rate, 1e-6), minStep);
         if (t > t1) {
             t = t1;
         }
@@ -361,7 +362,7 @@ vec4 ms_shadowProfile(vec3 q, vec3 l, int maxSteps, float reach, float skip) {
     vec3 slab = ms_slab(o, l, ms_heightBound);
     if (slab.y <= slab.x) return none;
     float t = max(2e-3 * ms_heightBound, 2.0 * eps);
-    float minStep = 2e-4 * max(ms_heightBound, 1e-6);
+    float minStep = max(2e-4 * max(ms_heightBound, 1e-6), ms_shadowStep);
     float least = reach;
     vec3 at = vec3(0.0);
     for (int i = 0; i < maxSteps; ++i) {
@@ -375,7 +376,7 @@ vec4 ms_shadowProfile(vec3 q, vec3 l, int maxSteps, float reach, float skip) {
         }
         float dn = abs(dot(l, ms_macroNormal(x)));
         float rate = dn + ms_slopeBound * sqrt(max(1.0 - dn * dn, 0.0));
-        t += max((gap > 0.0 ? MS_RELAX * gap : max(-gap, 0.5 * reach)) / max(rate, 1e-6), max(minStep, ms_shadowStep));
+        t += max((gap > 0.0 ? MS_RELAX * gap : max(-gap, 0.5 * reach)) / max(rate, 1e-6), minStep);
         if (t >= slab.y) break;
     }
     if (least >= reach) return none;

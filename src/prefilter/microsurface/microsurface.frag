@@ -378,7 +378,7 @@ void main() {
     float linearity = 1.0 - smoothstep(0.5, 2.0, spacing * ms_coarseFrequency);
     spacing *= linearity;
     float shadowReach = ms_slopeBound * spacing;
-    float qHeight = 0.0;  // the marched surface's height at q (q is off it by the march's tolerance); with the rays
+    float qHeight = 0.0;  // the marched surface's height at q (q is off it by the march's tolerance), set with the first shadow ray
     // The whole footprint's split: the coarse (marched) surface and the driver's unresolved variances.
     MsFootprint footprint;
     footprint.marchedCov = vec3(ms_coarseSlopeVariance, 0.0, ms_coarseSlopeVariance);
