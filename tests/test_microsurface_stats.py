@@ -34,6 +34,7 @@ from prefilter.microsurface.smith import (
 )
 from prefilter.microsurface.visible_slopes import (
     gauss_hermite_2d,
+    lambert_moments,
     projected_area,
     visible_slope_moments,
     visible_slope_moments_1d,
@@ -580,3 +581,85 @@ def test_glsl_visible_slopes_twin(target):
     assert np.all(np.abs(b[:, 1] - want_area) <= 1e-5 * np.maximum(want_area, 1e-3) + 1e-12)
     c = wo[:, 2] - np.sum(wo[:, :2] * mean, axis=1)
     assert (c < 0).sum() > 100  # the back-facing side (a < 0) is exercised
+
+
+# --- Lambert under the slope distribution, and the slope colour where the light falls --------------
+
+
+def _lambert_cases(count, rng):
+    mean = rng.normal(0.0, 0.3, (count, 2))
+    cov = _random_covs(count, rng, 1e-3, 0.3)
+    wi = _direction(rng.uniform(0.0, 75.0, count), rng.uniform(0.0, 360.0, count))
+    return mean, cov, wi
+
+
+def _lambert_monte_carlo(mean, cov, wi, rng, n=200_000):
+    s = rng.multivariate_normal(mean, cov, n)
+    normals = np.concatenate([-s, np.ones((n, 1))], axis=1)
+    cosine = np.maximum(normals @ wi / np.linalg.norm(normals, axis=1), 0.0)
+    return s, cosine
+
+
+def test_lambert_moments_against_monte_carlo():
+    """E[L] and Cov(s, L) of Lambert's cosine over Gaussian slopes: the 9-node cubature against 200 000
+    sampled slopes per case (light up to 75° from the normal, slope deviations up to 0.55). Measured: E[L]
+    within 0.0032, Cov(s, L) within 0.015 of the slopes' deviation (Lambert's kink at the terminator)."""
+    rng = np.random.default_rng(5)
+    mean, cov, wi = _lambert_cases(40, rng)
+    got_l, got_cov = lambert_moments(mean, _pack(cov), wi)
+    for k in range(len(mean)):
+        s, cosine = _lambert_monte_carlo(mean[k], cov[k], wi[k], rng)
+        assert abs(got_l[k] - cosine.mean()) < 0.005, k
+        want = ((s - s.mean(axis=0)) * (cosine - cosine.mean())[:, None]).mean(axis=0)
+        np.testing.assert_allclose(got_cov[k], want, atol=0.02 * np.sqrt(np.trace(cov[k])), err_msg=str(k))
+
+
+@pytest.mark.parametrize("target", TARGETS)
+def test_glsl_lambert_moments_twin(target):
+    rng = np.random.default_rng(6)
+    mean, cov, wi = _lambert_cases(500, rng)
+    mean, cov, wi = _f32(mean), _f32(_pack(cov)), _f32(wi / np.linalg.norm(wi, axis=1, keepdims=True))
+    got = glsl_eval("ms_lambertMoments(mean, cov, wi)", {"mean": mean, "cov": cov, "wi": wi}, 3,
+                    includes=VISIBLE, target=target)  # fmt: skip
+    want_l, want_cov = lambert_moments(mean, cov, wi)
+    np.testing.assert_allclose(got[:, 0], want_l, atol=2e-6)
+    np.testing.assert_allclose(got[:, 1:], want_cov, atol=2e-6)
+
+
+def test_slope_colour_under_light_against_monte_carlo():
+    """microsurface.frag's ms_slopeColourUnderLight: E[C(x) L]/E[L] for x = 0.6 s_x + 0.5 through
+    micro-slopes-sphere's colour table, as C̄ + ∂C̄/∂μ Cov(s_x, L)/E[L] (Stein's lemma; ∂C̄/∂μ over ± half
+    the deviation), against 200 000 sampled slopes per case. The plain filtered colour C̄ = E[C] misses by
+    what the correlation of colour and light adds. Measured (mean over the cases of the largest channel
+    error): 0.037 for C̄ alone, 0.0037 with the term."""
+    stops = np.array([[0.0, 0.88, 0.19, 0.16], [0.4, 0.94, 0.63, 0.63], [0.5, 0.95, 0.95, 0.95],
+                      [0.6, 0.63, 0.88, 0.94], [1.0, 0.16, 0.63, 0.88]])  # fmt: skip
+    n = 64
+    table = np.stack([np.interp((np.arange(n) + 0.5) / n, stops[:, 0], stops[:, c]) for c in (1, 2, 3)], 1)
+    edges = np.concatenate([[-np.inf], np.arange(1, n) / n, [np.inf]])
+
+    def filtered(mu, sigma):  # C̄(μ, σ): the table (clamped) under N(μ, σ²), exactly
+        return np.diff(norm.cdf((edges - mu) / max(sigma, 1e-12))) @ table
+
+    rng = np.random.default_rng(7)
+    mean, cov, wi = _lambert_cases(30, rng)
+    e_l, cov_sl = lambert_moments(mean, _pack(cov), wi)
+    plain_err, lit_err = [], []
+    for k in range(len(mean)):
+        if e_l[k] < 0.05:
+            continue  # (the light barely reaches these slopes)
+        s, cosine = _lambert_monte_carlo(mean[k], cov[k], wi[k], rng)
+        x = 0.6 * s[:, 0] + 0.5
+        truth = (table[np.clip(np.floor(x * n), 0, n - 1).astype(int)] * cosine[:, None]).mean(
+            0
+        ) / cosine.mean()
+        mu, sigma = 0.6 * mean[k, 0] + 0.5, 0.6 * np.sqrt(cov[k, 0, 0])
+        plain = filtered(mu, sigma)
+        h = max(0.5 * sigma, 1.0 / 256.0)  # in the map's argument; the shader works in slope units
+        derivative = (filtered(mu + h, sigma) - filtered(mu - h, sigma)) / (2.0 * h)
+        lit = np.clip(plain + derivative * 0.6 * cov_sl[k, 0] / e_l[k], 0.0, 1.0)
+        plain_err.append(np.abs(plain - truth).max())
+        lit_err.append(np.abs(lit - truth).max())
+    assert len(lit_err) >= 20
+    assert np.mean(lit_err) < 0.25 * np.mean(plain_err), (np.mean(lit_err), np.mean(plain_err))
+    assert np.mean(lit_err) < 0.008

@@ -92,6 +92,26 @@ vec4 ms_mapGaussian(sampler2D table, vec2 map, float mean, float variance, int w
     return cm_gaussian(table, map.x * mean + map.y, abs(map.x) * sqrt(max(variance, 0.0)), wrap, range);
 }
 
+// The slope colour where a light falls (beyond the paper): Lambert's cosine L and the slope colour C_s both
+// vary with the slope s, so what the light shows is E[C_s L]/E[L], not C̄_s = E[C_s]: facets turned to the
+// light are brighter, and on micro-slopes-sphere they are the red ones. For Gaussian slopes and L linear over
+// their spread, Stein's lemma gives Cov(C_s(s·d), L) = E[C_s'] Cov(s·d, L) with E[C_s'] = ∂C̄_s/∂μ, so
+//     E[C_s L]/E[L] = C̄_s + ∂C̄_s/∂μ · Cov(s·d, L)/E[L]
+// (exact for any L when C̄_s is linear over the spread). cs = C̄_s at the mean μ = E[s·d] with the variance
+// varDir of s·d; covOverMean = Cov(s·d, L)/E[L] (ms_lambertMoments). ∂C̄_s/∂μ is a central difference over
+// ±h, h half the deviation (C̄_s is smooth on that scale) and at least one texel of the bake.
+// Measured (256 px, 64-spp references; FLIP of surface-filter before -> after): micro-slopes-sphere
+// 0.0904 -> 0.0832, micro-snake-sphere 0.0837 -> 0.0776; presets without a slope colour map are unchanged.
+#ifdef MS_SLOPE_MAP
+vec4 ms_slopeColourUnderLight(vec4 cs, float mean, float varDir, float covOverMean) {
+    float texel = (u_slopeRange.y - u_slopeRange.x) / (float(textureSize(u_slopeGaussian, 0).x) * max(abs(u_slopeMap.x), 1e-30));
+    float h = max(0.5 * sqrt(max(varDir, 0.0)), texel);
+    vec4 above = ms_mapGaussian(u_slopeGaussian, u_slopeMap, mean + h, varDir, u_slopeWrap, u_slopeRange);
+    vec4 below = ms_mapGaussian(u_slopeGaussian, u_slopeMap, mean - h, varDir, u_slopeWrap, u_slopeRange);
+    return clamp(cs + (above - below) / (2.0 * h) * covOverMean, 0.0, 1.0);
+}
+#endif
+
 vec2 ms_heightFilteringMoments(float lambdaSum) {
 #ifdef MS_HEIGHT_FIT
     return ms_heightFilteringFit(lambdaSum);
@@ -484,12 +504,14 @@ void main() {
             offsetK -= dot(offsetK, frame[2]) * frame[2];
             float clearance = shadows[j].x + linearity * ((s.h - qHeight) - dot(shadows[j].yzw, offsetK));
             if (clearance <= 0.0) continue;
-            float cosine = 0.0;  // Lambert averaged over the visible slopes D_s
-            for (int n = 0; n < 9; ++n) {
-                vec3 node = ms_slopeNode3(visMean, visCov, n);
-                cosine += node.z * max(dot(normalize(vec3(-node.xy, 1.0)), wi), 0.0);
-            }
+            vec3 lambert = ms_lambertMoments(visMean, visCov, wi);  // Lambert averaged over D_s, Cov(s, L)
+            float cosine = lambert.x;
             if (cosine <= 0.0) continue;
+#ifdef MS_SLOPE_MAP
+            vec4 csLit = ms_slopeColourUnderLight(cs, dot(visMean, dir), visVarDir, dot(dir, lambert.yz) / cosine);
+#else
+            vec4 csLit = cs;
+#endif
 #ifdef MS_TRANSFER
             MsLight light = ms_light(m, wi);
 #else
@@ -507,7 +529,7 @@ void main() {
                                        wi.z > 0.0 ? light.visibility : 0.0, smoothstep(0.0, band, wi.z));
             }
 #endif
-            vec4 albedo = light.visibility * ms_combine(c0, ch, cs);
+            vec4 albedo = light.visibility * ms_combine(c0, ch, csLit);
             sampleRadiance += albedo.rgb * cosine * sh_lightColour[j];
         }
 #endif

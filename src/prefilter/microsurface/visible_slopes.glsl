@@ -25,6 +25,8 @@
 //         lower Cholesky factor of Sigma (semidefinite allowed), z in {-sqrt(3), 0, sqrt(3)}, weights
 //         w_i w_j with w = (1/6, 2/3, 1/6). Exact for polynomials of degree <= 5 in each slope. One node a
 //         call, no arrays (llvmpipe keeps local arrays in memory: the shading samples loop pays for them).
+//   vec3  ms_lambertMoments(vec2 mean, vec3 cov, vec3 wi)   (E[L], Cov(s, L)) of Lambert's cosine
+//         L(s) = max(n(s)·wi, 0), n(s) = normalize(-s, 1), for slopes N(mean, Sigma), by those 9 nodes.
 
 #include "microsurface/smith.glsl"
 
@@ -84,4 +86,14 @@ vec3 ms_slopeNode3(vec2 mean, vec3 cov, int k) {
     float zj = Z * float(j - 1);
     float weight = (i == 1 ? 2.0 / 3.0 : 1.0 / 6.0) * (j == 1 ? 2.0 / 3.0 : 1.0 / 6.0);
     return vec3(mean + vec2(l11 * zi, l21 * zi + l22 * zj), weight);
+}
+
+vec3 ms_lambertMoments(vec2 mean, vec3 cov, vec3 wi) {
+    vec3 moments = vec3(0.0);
+    for (int k = 0; k < 9; ++k) {
+        vec3 node = ms_slopeNode3(mean, cov, k);
+        float cosine = node.z * max(dot(normalize(vec3(-node.xy, 1.0)), wi), 0.0);
+        moments += vec3(cosine, cosine * (node.xy - mean));
+    }
+    return moments;
 }

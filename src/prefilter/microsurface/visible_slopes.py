@@ -36,6 +36,11 @@ probabilists' rule (order 3: nodes 0, ±√3, weights 2/3, 1/6) mapped through t
 (lower triangular, robust for semidefinite Σ); node k = order·i + j takes z = (z_i, z_j). Exact for
 polynomials of degree <= 2·order − 1 in each variable (degree 5 for order 3).
 
+Lambert under the slope distribution (`lambert_moments`, GLSL ms_lambertMoments): E[L] and Cov(s, L) of
+L(s) = max((−s, 1)·ω_i/|(−s, 1)|, 0), the cosine at the facet of slope s, by the same 9-node cubature. The
+covariance says how the light falls on the slopes: main() weights the slope colour with it (Stein's lemma,
+microsurface.frag).
+
 Parameters: wo (..., 3) unit view direction, mean (..., 2) mean slope s̄, cov (..., 2, 2) or packed
 (..., 3) = (Σxx, Σxy, Σyy) (GLSL vec3); slopes are dimensionless (rise over run).
 """
@@ -124,3 +129,17 @@ def gauss_hermite_2d(mean, cov, order: int = 3) -> tuple[np.ndarray, np.ndarray]
     l11, l21, l22 = (np.asarray(v)[..., None] for v in cholesky_2x2(cov))
     nodes = np.stack([l11 * zi, l21 * zi + l22 * zj], axis=-1) + mean[..., None, :]
     return nodes, weights
+
+
+def lambert_moments(mean, cov, wi) -> tuple[np.ndarray, np.ndarray]:
+    """(E[L], Cov(s, L)) of Lambert's cosine L(s) = max(n(s)·ω_i, 0), n(s) = (−s, 1)/|(−s, 1)|, for slopes
+    s ~ N(mean, cov), by the 3 x 3 Gauss–Hermite cubature (module header)."""
+    nodes, weights = gauss_hermite_2d(mean, cov)
+    normals = np.concatenate([-nodes, np.ones(nodes.shape[:-1] + (1,))], axis=-1)
+    normals /= np.linalg.norm(normals, axis=-1, keepdims=True)
+    cosine = np.maximum(np.sum(normals * np.asarray(wi, np.float64)[..., None, :], axis=-1), 0.0)
+    mean_l = np.sum(weights * cosine, axis=-1)
+    cov_sl = np.sum(
+        (weights * cosine)[..., None] * (nodes - np.asarray(mean, np.float64)[..., None, :]), axis=-2
+    )
+    return mean_l, cov_sl
