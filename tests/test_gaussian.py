@@ -20,6 +20,8 @@ from prefilter.procedural.noise import footprint_curvature, perlin_noise, perlin
 from prefilter.procedural.noise_stats import (
     GLSL,
     footprint_samples,
+    mean_fraction,
+    mean_fraction_fit,
     measure_entry,
     noise_stats,
     random_footprints,
@@ -276,3 +278,14 @@ def test_generated_glsl_holds_the_fitted_coefficients():
             assert float(m.group(component + 1)) == pytest.approx(fit[index], abs=1e-6), (constant, component)
     m = re.search(r"NS_VARIANCE = ([\d.]+);", text)
     assert float(m.group(1)) == pytest.approx(noise_stats().variance, abs=1e-6)
+    m = re.search(r"NS_MEAN_FALL = vec4\(([-\d.e]+), ([-\d.e]+), ([-\d.e]+), ([-\d.e]+)\)", text)
+    assert m
+    np.testing.assert_allclose([float(v) for v in m.groups()], mean_fraction_fit(), atol=1e-6)
+
+
+def test_mean_fraction_fit_stays_close_to_the_table():
+    """β₁ (the microsurfaces' scale split): the fit against the measured table, and its limits."""
+    stats = noise_stats()
+    r1, r2 = np.meshgrid(2.0**stats.grid, 2.0**stats.grid, indexing="ij")
+    assert np.abs(mean_fraction(r1, r2) - stats.beta_mean).max() < 0.05  # measured 0.041
+    np.testing.assert_allclose(mean_fraction(np.array([1e-3, 1e3]), np.array([1e-3, 1e3])), [1, 0], atol=1e-5)

@@ -69,9 +69,22 @@ vec4 ms_transfer(float mu, float sigma) {
 }
 #endif
 
-// β of an octave for a box footprint with axes jx, jy in its lattice units (noise_stats.glsl fit).
+float ms_reliefGate = 0.0;  // g of the last ms_reliefFootprint: 1 where the coarse relief stands out of the pixel
+
+// The weight w of an octave in the coarse surface, for a box footprint with axes jx, jy in its lattice
+// units (noise_stats.glsl fits). Where the statistics carry the pixel it is β₁, the footprint's mean
+// correlation with its centre: the heights in the footprint then spread about β₁ n(c) with the variance
+// (1 - β₁²) σ_n² that ms_setWeights leaves to the statistics (tests/test_microsurface.py). Where the relief
+// stands out of the pixel (ms_reliefGate -> 1) it is β of the split with the curvature term, larger
+// (0.86 against 0.58 at one cell), which keeps more of the relief as geometry. Measured (256 px, 64-spp
+// references, surface-filter FLIP with β everywhere -> this): micro-heights-sphere 0.0513 -> 0.0474,
+// micro-slopes-sphere 0.0832 -> 0.0728, micro-snake-sphere 0.0776 -> 0.0661; the terrains, moss and
+// sponge within 0.0007. β₁ everywhere also took the slope sphere to 0.0729, but the grazing terrain's far
+// field from 0.0501 to 0.0618 (its relief stands out of the pixel there, and the statistics render a
+// smoother horizon than the reference's few visible peaks).
 float ms_meanFraction(vec3 jx, vec3 jy) {
-    return ns_fall(dot(jx, jx), dot(jy, jy)).x;
+    float x1 = dot(jx, jx), x2 = dot(jy, jy);
+    return mix(ns_meanFraction(x1, x2), ns_fall(x1, x2).x, ms_reliefGate);
 }
 
 // full = true: every octave is real geometry (point mode and each reference pass).
@@ -181,14 +194,13 @@ mat3 ms_macroFrame(vec3 q) { return mat3(vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, -1.
 // and shadows that the macro footprint would leave to the statistics. The footprint's component along
 // the view (in the tangent plane) is scaled by
 //     cos θ_o / (cos θ_o + g MS_FACING_SLOPE sin θ_o),   g = smoothstep(1/4, 1, σ_c / P),
-// σ_c the height deviation of the coarse surface that the macro footprint keeps (for a height transfer
+// σ_c the height deviation of the coarse surface that the macro footprint keeps (weights β; for a height transfer
 // function, times its bound on |dh/df|): the relief must stand out of the pixel. MS_FACING_SLOPE and the
 // gate's edges were chosen on micro-heights-grazing and micro-heights-terrain against 64-spp ray-marched
 // references (FLIP of every filtered mode down, surface-filter 0.085 -> 0.061 and 0.096 -> 0.092); a
 // facing slope tied to the coarse slopes (the visible-slope mean, 1.25 σ_c at grazing) did worse.
 // Spheres whose relief is below a pixel keep their macro footprint. MS_MACRO_FOOTPRINT turns it off.
 #define MS_FACING_SLOPE 0.2
-float ms_reliefGate = 0.0;  // g of the last ms_reliefFootprint: 1 where the coarse relief stands out of the pixel
 
 void ms_reliefFootprint(vec3 q, vec3 view, inout vec3 dpdx, inout vec3 dpdy) {
 #ifndef MS_MACRO_FOOTPRINT
@@ -204,7 +216,7 @@ void ms_reliefFootprint(vec3 q, vec3 view, inout vec3 dpdx, inout vec3 dpdy) {
     for (int k = 0; k < MS_MAX_OCTAVES; ++k) {
         if (k >= ms_heightOctaves) break;
         vec2 af = ms_octave[k];
-        float w = ms_meanFraction(af.y * lx, af.y * ly);
+        float w = ns_fall(dot(af.y * lx, af.y * lx), dot(af.y * ly, af.y * ly)).x;  // as the gate was chosen
         coarseVariance += w * w * af.x * af.x * MS_NOISE_VARIANCE;
     }
     float sigma = sqrt(coarseVariance);

@@ -19,8 +19,11 @@ Scale split over a pixel footprint (our choice; Heitz et al. leave it to the noi
 fraction of octave k that survives in the mean over the footprint (procedural/noise_stats.py, the box
 footprint's axes measured in the octave's lattice units), the *coarse* surface h_c = Σ β_k a_k n_k is
 rendered as real geometry (ray-marched), and the rest of each octave's variance, (1 − β_k²), becomes the
-microsurface statistics σ_h² and Σ. Energy is conserved at every scale: β²Var + (1 − β²)Var = Var. Close
-up every β_k = 1 (all geometry real); far away every β_k = 0 (all statistics), with a continuous transition.
+microsurface statistics σ_h² and Σ. β_k is β₁, the footprint's mean correlation with its centre: the heights
+in the footprint spread about β₁ n(c) with variance (1 − β₁²)Var, so the split conserves each octave's
+variance (tests/test_microsurface.py). Where the relief stands out of the pixel, the shader blends towards
+the larger β of the split with a curvature term (heightfield.glsl, ms_meanFraction). Close up every
+β_k = 1 (all geometry real); far away every β_k = 0 (all statistics), with a continuous transition.
 
 Bounds used by the ray marcher: |n| < 0.99 (measured max 0.988) and |∇n| < 3.2 (measured max 3.17).
 """

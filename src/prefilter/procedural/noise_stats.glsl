@@ -2,12 +2,14 @@
 // Perlin noise under a box footprint with axis lengths rho1, rho2 (lattice units):
 // beta = F(rho1) F(rho2), kappa, gamma and 1 - lambda likewise,
 // F(rho) = (1 + a rho^2) / (1 + (a + d) rho^2 + b rho^3 + c rho^4);
-// NS_FALL_A .. NS_FALL_D hold a .. d of (beta, kappa, gamma, 1 - lambda).
+// NS_FALL_A .. NS_FALL_D hold a .. d of (beta, kappa, gamma, 1 - lambda);
+// NS_MEAN_FALL holds (a, b, c, d) of beta_1, the mean fraction without the curvature term.
 const float NS_VARIANCE = 0.073106;
 const vec4 NS_FALL_A = vec4(1.626297, 0.000000, 0.000000, 0.058597);
 const vec4 NS_FALL_B = vec4(0.000000, 0.000000, 0.000000, 0.056607);
 const vec4 NS_FALL_C = vec4(0.220682, 0.086252, 0.123082, 0.095695);
 const vec4 NS_FALL_D = vec4(0.000000, 0.437582, 0.333809, 0.000000);
+const vec4 NS_MEAN_FALL = vec4(0.199194, 0.166514, 0.012020, 0.199789);
 
 // F(rho1) F(rho2) of (beta, kappa, gamma, 1 - lambda) for the squared axis lengths x1 = rho1^2,
 // x2 = rho2^2. x is capped where every F is 0 to float precision, so that neither product overflows.
@@ -17,4 +19,12 @@ vec4 ns_fall(float x1, float x2) {
     vec4 dx = nx + x.x * (NS_FALL_D + NS_FALL_B * sqrt(x.x) + NS_FALL_C * x.x);
     vec4 dy = ny + x.y * (NS_FALL_D + NS_FALL_B * sqrt(x.y) + NS_FALL_C * x.y);
     return (nx * ny) / (dx * dy);
+}
+
+// beta_1 = F(rho1) F(rho2) with NS_MEAN_FALL, for x1 = rho1^2, x2 = rho2^2 (capped like ns_fall).
+float ns_meanFraction(float x1, float x2) {
+    vec2 x = min(vec2(x1, x2), vec2(1e12));
+    vec2 n = 1.0 + NS_MEAN_FALL.x * x;
+    vec2 d = n + x * (NS_MEAN_FALL.w + NS_MEAN_FALL.y * sqrt(x) + NS_MEAN_FALL.z * x);
+    return (n.x * n.y) / (d.x * d.y);
 }

@@ -15,7 +15,12 @@ lattice units); the measurement uses orthogonal axes, random 3D orientations and
              cell leaves 2 % of the mean's error variance that β n(c) alone leaves, one of a cell 15 %.
              γ is the part of Hart's first-order variation that is real at this footprint size;
   λ(ρ1, ρ2)  = E[ mean_{x in P} (n(x) - β n(c) - κ τ(c) - γ ∇n(c)·(x - c))² ] / σ_n²: the variance
-             that this model of the resolved part leaves unexplained (0 tiny, 1 huge).
+             that this model of the resolved part leaves unexplained (0 tiny, 1 huge);
+  β₁         the least-squares fit n(x) ≈ β₁ n(c) alone: the footprint's mean correlation with its centre,
+             E[n(x) n(c)] / σ_n². The heights in the footprint are then spread about β₁ n(c) with variance
+             (1 - β₁²) σ_n² (tests/test_microsurface_stats.py), the scale split of the microsurfaces
+             (microsurface/heightfield.py), which have no κ τ term. β is larger (0.86 against 0.59 at a
+             footprint of one cell) because κ τ, anti-correlated with n(c), completes it.
 
 At run time (through the rational fits of `fit_split`, written to noise_stats.glsl) a term a n(T s)
 adds a (β n(c) + κ τ(c)) to the mean μ, a γ ∇n(c) to the gradient whose footprint variance gives σ_lin²,
@@ -52,6 +57,7 @@ class NoiseStats:
     kappa: np.ndarray
     gamma: np.ndarray
     lam: np.ndarray
+    beta_mean: np.ndarray  # β₁
 
     def lookup(self, rho1: np.ndarray, rho2: np.ndarray) -> tuple[np.ndarray, ...]:
         """Bilinear interpolation in (log2 ρ1, log2 ρ2), clamped to the grid (as the shader does)."""
@@ -104,7 +110,7 @@ def measure_entry(
     count: int = FOOTPRINTS,
     samples: int = SAMPLES,
 ) -> tuple[float, float, float, float]:
-    """(β, κ, γ, λ) of one footprint shape by Monte Carlo over `count` random footprints."""
+    """(β, κ, γ, λ, β₁) of one footprint shape by Monte Carlo over `count` random footprints."""
     centres, e1, e2 = random_footprints(rng, count, rho1, rho2)
     points, offsets = footprint_samples(centres, e1, e2, samples)
     values = perlin_noise(points)
@@ -116,14 +122,15 @@ def measure_entry(
     (beta, kappa, gamma), *_ = np.linalg.lstsq(design, values.ravel(), rcond=None)
     model = beta * value_term + kappa * shift_term + gamma * slope_term
     lam = float(np.mean((values - model) ** 2) / variance)
-    return float(beta), float(kappa), float(gamma), lam
+    beta_mean = float(np.sum(values * value_term) / np.sum(value_term**2))
+    return float(beta), float(kappa), float(gamma), lam, beta_mean
 
 
 def measure(seed: int = SEED) -> NoiseStats:
     rng = np.random.default_rng(seed)
     variance = measure_variance(rng)
     n = len(GRID)
-    tables = np.zeros((4, n, n))  # β, κ, γ, λ
+    tables = np.zeros((5, n, n))  # β, κ, γ, λ, β₁
     for i in range(n):
         for j in range(i + 1):
             tables[:, i, j] = tables[:, j, i] = measure_entry(rng, 2.0 ** GRID[i], 2.0 ** GRID[j], variance)
@@ -134,7 +141,13 @@ def measure(seed: int = SEED) -> NoiseStats:
 def noise_stats() -> NoiseStats:
     with np.load(DATA) as data:
         return NoiseStats(
-            float(data["variance"]), data["grid"], data["beta"], data["kappa"], data["gamma"], data["lam"]
+            float(data["variance"]),
+            data["grid"],
+            data["beta"],
+            data["kappa"],
+            data["gamma"],
+            data["lam"],
+            data["beta_mean"],
         )
 
 
@@ -156,7 +169,35 @@ _FREE = {
     "kappa": (False, False, True, True),
     "gamma": (False, False, True, True),
     "one_minus_lambda": (True, True, True, False),
+    # β₁ falls as 1 - O(ρ²) (the correlation's curvature at 0) and as ρ⁻² or faster (the footprint's area)
+    "beta_mean": (True, True, True, True),
 }
+
+
+def _fit_fall(
+    grid: np.ndarray, target: np.ndarray, free: tuple[bool, ...]
+) -> tuple[float, float, float, float]:
+    """(a, b, c, d) of F(ρ1) F(ρ2) ≈ target on the table's nodes, least squares, a..d >= 0, the entries
+    that `free` marks False held at 0."""
+    from scipy.optimize import least_squares
+
+    r1, r2 = np.meshgrid(2.0**grid, 2.0**grid, indexing="ij")  # ρ at the table's nodes
+    free = np.array(free)
+
+    def coefficients(values):
+        c = np.zeros(4)
+        c[free] = values
+        return c
+
+    def residual(values):
+        c = coefficients(values)
+        return (_rational_fall(r1, *c) * _rational_fall(r2, *c) - target).ravel()
+
+    fit = min(
+        (least_squares(residual, [start] * free.sum(), bounds=(0.0, np.inf)) for start in (0.01, 0.1, 1.0)),
+        key=lambda result: result.cost,
+    )
+    return tuple(float(v) for v in coefficients(fit.x))
 
 
 def fit_split(stats: NoiseStats) -> dict[str, tuple[float, float, float, float]]:
@@ -174,37 +215,26 @@ def fit_split(stats: NoiseStats) -> dict[str, tuple[float, float, float, float]]
     0.013 / 0.016 against 0.044 / 0.024 / 0.024 / 0.023 (β / κ / γ / λ). tests/test_gaussian.py checks
     the largest errors.
     """
-    from scipy.optimize import least_squares
-
-    r1, r2 = np.meshgrid(2.0**stats.grid, 2.0**stats.grid, indexing="ij")  # ρ at the table's nodes
-    fits = {}
     targets = (
         ("beta", stats.beta),
         ("kappa", stats.kappa),
         ("gamma", stats.gamma),
         ("one_minus_lambda", 1.0 - stats.lam),
     )
-    for name, target in targets:
-        free = np.array(_FREE[name])
+    return {name: _fit_fall(stats.grid, target, _FREE[name]) for name, target in targets}
 
-        def coefficients(values, free=free):
-            c = np.zeros(4)
-            c[free] = values
-            return c
 
-        def residual(values, target=target, coefficients=coefficients):
-            c = coefficients(values)
-            return (_rational_fall(r1, *c) * _rational_fall(r2, *c) - target).ravel()
+@lru_cache(maxsize=1)
+def mean_fraction_fit() -> tuple[float, float, float, float]:
+    """(a, b, c, d) of the fit β₁ ≈ F(ρ1) F(ρ2) of the stored table (noise_stats.glsl's NS_MEAN_FALL)."""
+    stats = noise_stats()
+    return _fit_fall(stats.grid, stats.beta_mean, _FREE["beta_mean"])
 
-        fit = min(
-            (
-                least_squares(residual, [start] * free.sum(), bounds=(0.0, np.inf))
-                for start in (0.01, 0.1, 1.0)
-            ),
-            key=lambda result: result.cost,
-        )
-        fits[name] = tuple(float(v) for v in coefficients(fit.x))
-    return fits
+
+def mean_fraction(rho1: np.ndarray, rho2: np.ndarray) -> np.ndarray:
+    """NumPy twin of ns_meanFraction: β₁ of a footprint with axis lengths ρ1, ρ2 (lattice units)."""
+    fit = mean_fraction_fit()
+    return _rational_fall(rho1, *fit) * _rational_fall(rho2, *fit)
 
 
 @lru_cache(maxsize=1)
@@ -229,16 +259,19 @@ def glsl_source(stats: NoiseStats) -> str:
         "// Perlin noise under a box footprint with axis lengths rho1, rho2 (lattice units):",
         "// beta = F(rho1) F(rho2), kappa, gamma and 1 - lambda likewise,",
         "// F(rho) = (1 + a rho^2) / (1 + (a + d) rho^2 + b rho^3 + c rho^4);",
-        "// NS_FALL_A .. NS_FALL_D hold a .. d of (beta, kappa, gamma, 1 - lambda).",
+        "// NS_FALL_A .. NS_FALL_D hold a .. d of (beta, kappa, gamma, 1 - lambda);",
+        "// NS_MEAN_FALL holds (a, b, c, d) of beta_1, the mean fraction without the curvature term.",
         f"const float NS_VARIANCE = {stats.variance:.6f};",
     ]
     for index, constant in enumerate(("NS_FALL_A", "NS_FALL_B", "NS_FALL_C", "NS_FALL_D")):
         values = ", ".join(f"{fit[index]:.6f}" for fit in fits.values())
         lines.append(f"const vec4 {constant} = vec4({values});")
+    mean_fit = _fit_fall(stats.grid, stats.beta_mean, _FREE["beta_mean"])
+    lines.append(f"const vec4 NS_MEAN_FALL = vec4({', '.join(f'{v:.6f}' for v in mean_fit)});")
     return "\n".join(lines) + "\n" + _GLSL_FALL
 
 
-# The fits' evaluation, shared by procedural/hart.glsl (all four) and microsurface/heightfield.glsl (β).
+# The fits' evaluation: ns_fall for procedural/hart.glsl, ns_meanFraction for microsurface/heightfield.glsl.
 _GLSL_FALL = """
 // F(rho1) F(rho2) of (beta, kappa, gamma, 1 - lambda) for the squared axis lengths x1 = rho1^2,
 // x2 = rho2^2. x is capped where every F is 0 to float precision, so that neither product overflows.
@@ -248,6 +281,14 @@ vec4 ns_fall(float x1, float x2) {
     vec4 dx = nx + x.x * (NS_FALL_D + NS_FALL_B * sqrt(x.x) + NS_FALL_C * x.x);
     vec4 dy = ny + x.y * (NS_FALL_D + NS_FALL_B * sqrt(x.y) + NS_FALL_C * x.y);
     return (nx * ny) / (dx * dy);
+}
+
+// beta_1 = F(rho1) F(rho2) with NS_MEAN_FALL, for x1 = rho1^2, x2 = rho2^2 (capped like ns_fall).
+float ns_meanFraction(float x1, float x2) {
+    vec2 x = min(vec2(x1, x2), vec2(1e12));
+    vec2 n = 1.0 + NS_MEAN_FALL.x * x;
+    vec2 d = n + x * (NS_MEAN_FALL.w + NS_MEAN_FALL.y * sqrt(x) + NS_MEAN_FALL.z * x);
+    return (n.x * n.y) / (d.x * d.y);
 }
 """
 
@@ -264,6 +305,7 @@ def main() -> int:
         kappa=stats.kappa,
         gamma=stats.gamma,
         lam=stats.lam,
+        beta_mean=stats.beta_mean,
     )
     tmp.replace(DATA)
     GLSL.write_text(glsl_source(stats))
