@@ -18,7 +18,7 @@ Scene TOML (under [object.material], type = "microsurface"):
   footprint = "relief" | "macro"   the pixel footprint that splits the octaves into geometry and
       statistics: on the visible relief, foreshortened by facets facing a grazing eye (heightfield.glsl
       ms_reliefFootprint), or on the macro surface
-  shading_samples = 9 | 4 | 16 | 1   surface-filter shades the pixel at N x N sub-pixel points with the
+  shading_samples = 4 | 9 | 16 | 1   surface-filter shades the pixel at N x N sub-pixel points with the
       octaves split for a 1/N footprint and averages them (microsurface.frag: the octaves the footprint
       half resolves are then integrated over the pixel, not sampled once), or once, as the paper does
   [height_colour], [slope_colour], [texture_colour]: scale = 1, offset = 0 (argument = scale·x + offset),
@@ -71,7 +71,7 @@ class MicrosurfaceMaterial:
     slope_direction: tuple[float, float] = (1.0, 0.0)
     height_moments: str = "table"
     footprint: str = "relief"
-    shading_samples: int = 9
+    shading_samples: int = 4
     transfer: object | None = None  # microsurface.transfer.TransferFunction
     transfer_scale: float = 1.0  # h = transfer_scale · g(f)
     environment: Path | None = None
@@ -248,7 +248,7 @@ def parse_microsurface(r: Reader, base_dir: Path) -> MicrosurfaceMaterial:
         raise r.fail("slope_direction", "must be non-zero")
     moments = r.string("height_moments", "table", choices=("table", "log-fit"))
     footprint = r.string("footprint", "relief", choices=("relief", "macro"))
-    shading_samples = r.integer("shading_samples", 9)
+    shading_samples = r.integer("shading_samples", 4)
     if shading_samples not in (1, 4, 9, 16):
         raise r.fail("shading_samples", f"must be 1, 4, 9 or 16, got {shading_samples}")
     transfer, transfer_scale = None, 1.0
