@@ -83,8 +83,8 @@ float ms_reliefGate = 0.0;  // g of the last ms_reliefFootprint: 1 where the coa
 // field from 0.0501 to 0.0618 (its relief stands out of the pixel there, and the statistics render a
 // smoother horizon than the reference's few visible peaks).
 float ms_meanFraction(vec3 jx, vec3 jy) {
-    float x1 = dot(jx, jx), x2 = dot(jy, jy);
-    return mix(ns_meanFraction(x1, x2), ns_fall(x1, x2).x, ms_reliefGate);
+    vec2 fractions = ns_meanFractions(dot(jx, jx), dot(jy, jy));  // (β, β₁)
+    return mix(fractions.y, fractions.x, ms_reliefGate);
 }
 
 // full = true: every octave is real geometry (point mode and each reference pass).
@@ -216,7 +216,7 @@ void ms_reliefFootprint(vec3 q, vec3 view, inout vec3 dpdx, inout vec3 dpdy) {
     for (int k = 0; k < MS_MAX_OCTAVES; ++k) {
         if (k >= ms_heightOctaves) break;
         vec2 af = ms_octave[k];
-        float w = ns_fall(dot(af.y * lx, af.y * lx), dot(af.y * ly, af.y * ly)).x;  // as the gate was chosen
+        float w = ns_meanFractions(dot(af.y * lx, af.y * lx), dot(af.y * ly, af.y * ly)).x;  // β, as the gate was chosen
         coarseVariance += w * w * af.x * af.x * MS_NOISE_VARIANCE;
     }
     float sigma = sqrt(coarseVariance);

@@ -21,10 +21,14 @@ vec4 ns_fall(float x1, float x2) {
     return (nx * ny) / (dx * dy);
 }
 
-// beta_1 = F(rho1) F(rho2) with NS_MEAN_FALL, for x1 = rho1^2, x2 = rho2^2 (capped like ns_fall).
-float ns_meanFraction(float x1, float x2) {
+// (beta, beta_1): ns_fall's first component and beta_1 (NS_MEAN_FALL) in one evaluation, for the same
+// x1 = rho1^2, x2 = rho2^2 (capped like ns_fall).
+vec2 ns_meanFractions(float x1, float x2) {
+    vec2 a = vec2(NS_FALL_A.x, NS_MEAN_FALL.x), b = vec2(NS_FALL_B.x, NS_MEAN_FALL.y);
+    vec2 c = vec2(NS_FALL_C.x, NS_MEAN_FALL.z), d = vec2(NS_FALL_D.x, NS_MEAN_FALL.w);
     vec2 x = min(vec2(x1, x2), vec2(1e12));
-    vec2 n = 1.0 + NS_MEAN_FALL.x * x;
-    vec2 d = n + x * (NS_MEAN_FALL.w + NS_MEAN_FALL.y * sqrt(x) + NS_MEAN_FALL.z * x);
-    return (n.x * n.y) / (d.x * d.y);
+    vec2 nx = 1.0 + a * x.x, ny = 1.0 + a * x.y;
+    vec2 dx = nx + x.x * (d + b * sqrt(x.x) + c * x.x);
+    vec2 dy = ny + x.y * (d + b * sqrt(x.y) + c * x.y);
+    return (nx * ny) / (dx * dy);
 }

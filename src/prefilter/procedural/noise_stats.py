@@ -224,11 +224,15 @@ def fit_split(stats: NoiseStats) -> dict[str, tuple[float, float, float, float]]
     return {name: _fit_fall(stats.grid, target, _FREE[name]) for name, target in targets}
 
 
+def fit_mean_fraction(stats: NoiseStats) -> tuple[float, float, float, float]:
+    """(a, b, c, d) of the separable rational fit β₁ ≈ F(ρ1) F(ρ2) (the form of fit_split)."""
+    return _fit_fall(stats.grid, stats.beta_mean, _FREE["beta_mean"])
+
+
 @lru_cache(maxsize=1)
 def mean_fraction_fit() -> tuple[float, float, float, float]:
-    """(a, b, c, d) of the fit β₁ ≈ F(ρ1) F(ρ2) of the stored table (noise_stats.glsl's NS_MEAN_FALL)."""
-    stats = noise_stats()
-    return _fit_fall(stats.grid, stats.beta_mean, _FREE["beta_mean"])
+    """The fit of the stored table, computed once (the coefficients noise_stats.glsl's NS_MEAN_FALL holds)."""
+    return fit_mean_fraction(noise_stats())
 
 
 def mean_fraction(rho1: np.ndarray, rho2: np.ndarray) -> np.ndarray:
@@ -266,12 +270,12 @@ def glsl_source(stats: NoiseStats) -> str:
     for index, constant in enumerate(("NS_FALL_A", "NS_FALL_B", "NS_FALL_C", "NS_FALL_D")):
         values = ", ".join(f"{fit[index]:.6f}" for fit in fits.values())
         lines.append(f"const vec4 {constant} = vec4({values});")
-    mean_fit = _fit_fall(stats.grid, stats.beta_mean, _FREE["beta_mean"])
+    mean_fit = fit_mean_fraction(stats)
     lines.append(f"const vec4 NS_MEAN_FALL = vec4({', '.join(f'{v:.6f}' for v in mean_fit)});")
     return "\n".join(lines) + "\n" + _GLSL_FALL
 
 
-# The fits' evaluation: ns_fall for procedural/hart.glsl, ns_meanFraction for microsurface/heightfield.glsl.
+# The fits' evaluation: ns_fall for procedural/hart.glsl, ns_meanFractions for microsurface/heightfield.glsl.
 _GLSL_FALL = """
 // F(rho1) F(rho2) of (beta, kappa, gamma, 1 - lambda) for the squared axis lengths x1 = rho1^2,
 // x2 = rho2^2. x is capped where every F is 0 to float precision, so that neither product overflows.
@@ -283,12 +287,16 @@ vec4 ns_fall(float x1, float x2) {
     return (nx * ny) / (dx * dy);
 }
 
-// beta_1 = F(rho1) F(rho2) with NS_MEAN_FALL, for x1 = rho1^2, x2 = rho2^2 (capped like ns_fall).
-float ns_meanFraction(float x1, float x2) {
+// (beta, beta_1): ns_fall's first component and beta_1 (NS_MEAN_FALL) in one evaluation, for the same
+// x1 = rho1^2, x2 = rho2^2 (capped like ns_fall).
+vec2 ns_meanFractions(float x1, float x2) {
+    vec2 a = vec2(NS_FALL_A.x, NS_MEAN_FALL.x), b = vec2(NS_FALL_B.x, NS_MEAN_FALL.y);
+    vec2 c = vec2(NS_FALL_C.x, NS_MEAN_FALL.z), d = vec2(NS_FALL_D.x, NS_MEAN_FALL.w);
     vec2 x = min(vec2(x1, x2), vec2(1e12));
-    vec2 n = 1.0 + NS_MEAN_FALL.x * x;
-    vec2 d = n + x * (NS_MEAN_FALL.w + NS_MEAN_FALL.y * sqrt(x) + NS_MEAN_FALL.z * x);
-    return (n.x * n.y) / (d.x * d.y);
+    vec2 nx = 1.0 + a * x.x, ny = 1.0 + a * x.y;
+    vec2 dx = nx + x.x * (d + b * sqrt(x.x) + c * x.x);
+    vec2 dy = ny + x.y * (d + b * sqrt(x.y) + c * x.y);
+    return (nx * ny) / (dx * dy);
 }
 """
 
