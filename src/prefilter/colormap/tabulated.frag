@@ -13,11 +13,15 @@ in vec3 v_normal;
 in vec2 v_uv;
 
 uniform sampler2D u_driver;  // @table u, v: the mesh uv times u_uvScale (the driver image tiles: REPEAT), one texel per image pixel; RG: (f, f²) with f = value_offset + value_scale x the image's first channel (PNG scaled to [0, 1]); MIP level L: exact block means of f and f² (2x2 box means of the level below, computed on the CPU), so σ² = E[f²] - E[f]² after trilinear filtering; LINEAR_MIPMAP_LINEAR, 16x anisotropic; not colours
-uniform sampler2D u_tablePoint;  // @table u: the driver value f in table periods, n = width entries (a power of two), entry i covering f in [i/n, (i+1)/n); read with texelFetch at i = floor(n fract(f)) for u_wrap = 0 (modulo) or min(floor(n clamp(f, 0, 1)), n - 1) for u_wrap = 1 (clamp); one row, NEAREST, no MIP; RGBA: the colour table c(f) in linear RGB premultiplied by alpha, and alpha
-uniform sampler2D u_tableGaussian;  // @table the preconvolved colour map C̄(μ, σ) = [clut * N(0, σ²)](μ) of Heitz et al. 2014 eq. 9 with u_gaussianRange = (mu_lo, mu_hi, sigma_max); u: μ = E[f] from u_driver, in table periods: u = fract(μ) for u_wrap = 0 (modulo: one period, REPEAT, u_gaussianRange.xy = (0, 1)) or (μ - mu_lo)/(mu_hi - mu_lo) for u_wrap = 1 (clamp: CLAMP_TO_EDGE, the edge columns beyond), texel i at μ = mu_lo + (i + 0.5)(mu_hi - mu_lo)/width; v: σ = sqrt(E[f²] - E[f]²) from u_driver, row j at σ = sigma_max j/(height - 1) (read at v = (σ/sigma_max (height - 1) + 0.5)/height; σ > sigma_max reads the last row; row 0 is the table itself); RGBA: the colour table convolved with N(0, σ²) at μ, in linear RGB premultiplied by alpha, and alpha; LINEAR, no MIP
+uniform sampler2D u_tablePoint;  // @table u: the driver value f in table periods, n = width entries (a power of two), entry i covering f in [i/n, (i+1)/n); read with texelFetch at i = floor(n fract(f)) for TB_WRAP = 0 (modulo) or min(floor(n clamp(f, 0, 1)), n - 1) for TB_WRAP = 1 (clamp); one row, NEAREST, no MIP; RGBA: the colour table c(f) in linear RGB premultiplied by alpha, and alpha
+uniform sampler2D u_tableGaussian;  // @table the preconvolved colour map C̄(μ, σ) = [clut * N(0, σ²)](μ) of Heitz et al. 2014 eq. 9 with u_gaussianRange = (mu_lo, mu_hi, sigma_max); u: μ = E[f] from u_driver, in table periods: u = fract(μ) for TB_WRAP = 0 (modulo: one period, REPEAT, u_gaussianRange.xy = (0, 1)) or (μ - mu_lo)/(mu_hi - mu_lo) for TB_WRAP = 1 (clamp: CLAMP_TO_EDGE, the edge columns beyond), texel i at μ = mu_lo + (i + 0.5)(mu_hi - mu_lo)/width; v: σ = sqrt(E[f²] - E[f]²) from u_driver, row j at σ = sigma_max j/(height - 1) (read at v = (σ/sigma_max (height - 1) + 0.5)/height; σ > sigma_max reads the last row; row 0 is the table itself); RGBA: the colour table convolved with N(0, σ²) at μ, in linear RGB premultiplied by alpha, and alpha; LINEAR, no MIP
 uniform vec3 u_gaussianRange;
 uniform vec2 u_uvScale;  // @param 0.25..64 log UV scale: repeats (su, sv) of the driver image over the mesh's uvs; every mode follows (the MIP footprint is measured in the scaled uvs)
-uniform int u_wrap;
+// The table's wrap mode, CM_MODULO (0) or CM_CLAMP (1), a compile-time constant as in procedural/hart.frag.
+#ifndef TB_WRAP
+#define TB_WRAP 0
+#endif
+const int tb_wrap = TB_WRAP;
 
 out vec4 o_colour;
 
@@ -25,13 +29,13 @@ void main() {
     vec2 uv = v_uv * u_uvScale;
     vec4 albedo;
 #if defined(MODE_POINT)
-    albedo = cm_point(u_tablePoint, tb_driverAtBase(u_driver, uv), u_wrap);
+    albedo = cm_point(u_tablePoint, tb_driverAtBase(u_driver, uv), tb_wrap);
 #elif defined(MODE_NAIVE)
-    albedo = cm_point(u_tablePoint, texture(u_driver, uv).x, u_wrap);
+    albedo = cm_point(u_tablePoint, texture(u_driver, uv).x, tb_wrap);
 #elif defined(MODE_GAUSSIAN)
     vec2 moments = texture(u_driver, uv).xy;
     float sigma = sqrt(max(moments.y - moments.x * moments.x, 0.0));
-    albedo = cm_gaussian(u_tableGaussian, moments.x, sigma, u_wrap, u_gaussianRange);
+    albedo = cm_gaussian(u_tableGaussian, moments.x, sigma, tb_wrap, u_gaussianRange);
 #else
 #error "unknown MODE_ define"
 #endif

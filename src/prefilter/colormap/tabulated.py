@@ -110,7 +110,7 @@ class TabulatedMaterial:
         return PACKAGE_ROOT / "glsl/common/surface.vert", SHADER_DIR / "tabulated.frag"
 
     def defines(self, options) -> dict[str, object]:
-        return {}
+        return {"TB_WRAP": self.table.wrap_code}
 
     def upload(self, ctx: moderngl.Context, mesh) -> TabulatedResources:
         table = self.table.premultiplied()
@@ -142,7 +142,6 @@ class TabulatedMaterial:
         set_uniforms(
             prog,
             {
-                "u_wrap": resources.table.wrap_code,
                 "u_gaussianRange": resources.gaussian_range,
                 "u_uvScale": tuple(float(v) for v in self.uv_scale),
             },

@@ -96,7 +96,7 @@ class HartMaterial:
 
     def defines(self, options) -> dict[str, object]:
         count = min(len(self.terms), REDUCED_TERMS) if options.reduced else len(self.terms)
-        defines: dict[str, object] = {"PT_TERM_COUNT": count}
+        defines: dict[str, object] = {"PT_TERM_COUNT": count, "PT_WRAP": self.table.wrap_code}
         if options.reduced:
             defines["PT_REDUCED"] = True
         if options.first_order:
@@ -142,7 +142,6 @@ class HartMaterial:
         bits = options.quant_bits  # Hart §4.3: B bits over the object's solid-coordinate extent
         terms = self.terms[: self.defines(options)["PT_TERM_COUNT"]]
         values: dict[str, object] = {
-            "u_wrap": textures.wrap_code,
             "u_gaussianRange": resources.gaussian_range,
             "u_solidFromObject": self.solid_from_object.T,
             "u_quantStep": 2.0 * resources.solid_extent / 2.0**bits if bits else 0.0,
