@@ -21,6 +21,7 @@ from prefilter.microsurface.irradiance import (
     GLSL,
     SH_LM,
     filtered_irradiance,
+    filtered_irradiance_moments,
     irradiance_brute,
     irradiance_sh,
     pixel_directions,
@@ -302,6 +303,36 @@ def test_filtered_irradiance_vs_high_order_gauss_hermite(name):
     np.testing.assert_allclose(batched, single, rtol=1e-13)
 
 
+@pytest.mark.parametrize("name", MAPS)
+def test_irradiance_slope_covariance_vs_monte_carlo(name):
+    """Cov(s·d, E(n(s))) from the 3x3 nodes against 200 000 sampled slopes per case, for random slope
+    directions d, and against a 40 x 40 Gauss–Hermite rule. The 3x3 rule's own error, measured against
+    the 40 x 40 one: at most 0.07 % of σ_d max|E| (σ_d up to 0.17), where the covariance reaches 8 % of it."""
+    coeffs = sh9_project(read_environment(DATA / f"{name}.exr"))
+    rng = np.random.default_rng(11)
+    x, w = hermegauss(40)
+    w = w / w.sum()
+    grid = np.stack(np.meshgrid(x, x, indexing="ij"), axis=-1).reshape(-1, 2)
+    weights = np.outer(w, w).ravel()
+    for frame, mean, cov in _cases():
+        angle = rng.uniform(0.0, 2.0 * np.pi)
+        d = np.array([np.cos(angle), np.sin(angle)])
+        slopes = rng.multivariate_normal(mean, cov, size=200_000)
+        e = irradiance_sh(coeffs, slope_normals(frame, slopes))
+        x = (slopes - mean) @ d
+        products = x[:, None] * (e - e.mean(axis=0))
+        mc, se = products.mean(axis=0), products.std(axis=0) / np.sqrt(len(x))
+        total, got = filtered_irradiance_moments(coeffs, frame, mean, cov, d)
+        np.testing.assert_allclose(total, filtered_irradiance(coeffs, frame, mean, cov), rtol=1e-13)
+        sigma_d = np.sqrt(d @ cov @ d)
+        assert np.all(np.abs(got - mc) <= 5.0 * se + 1e-3 * sigma_d * np.abs(e).max()), (got, mc, se)
+        offsets = grid @ np.linalg.cholesky(cov).T
+        fine = weights @ (
+            (offsets @ d)[:, None] * irradiance_sh(coeffs, slope_normals(frame, mean + offsets))
+        )
+        assert np.abs(got - fine).max() <= 1e-3 * sigma_d * np.abs(e).max(), (got, fine)
+
+
 # --- GLSL -----------------------------------------------------------------------------------------------
 
 PRELUDE = "uniform vec3 coeffs[9];\nuniform mat3 worldFromTangent;\n"
@@ -356,3 +387,33 @@ def test_glsl_filtered_irradiance_matches_python(target):
     )
     expected = filtered_irradiance(coeffs, frame, mean, cov)
     np.testing.assert_allclose(got, expected, atol=2e-6 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("target", TARGETS)
+def test_glsl_irradiance_moments_match_python(target):
+    coeffs = sh9_project(read_environment(DATA / "sky-high-sun.exr"))
+    rng = np.random.default_rng(8)
+    frame = Rotation.random(random_state=4).as_matrix()
+    count = 200
+    mean = rng.normal(0.0, 0.4, (count, 2))
+    a = rng.normal(0.0, 0.3, (count, 2, 2))
+    cov2 = a @ np.swapaxes(a, 1, 2)
+    cov = np.stack([cov2[:, 0, 0], cov2[:, 0, 1], cov2[:, 1, 1]], axis=-1)
+    d = np.array([0.6, -0.8])
+    prelude = PRELUDE + (
+        "vec3 moments(vec2 mean, vec3 cov, vec2 d, bool covariance) { vec3 c;"
+        " vec3 e = ms_filteredIrradianceMomentsSH(coeffs, worldFromTangent, mean, cov, d, c);"
+        " return covariance ? c : e; }"
+    )
+    want_e, want_c = filtered_irradiance_moments(coeffs, frame, mean, cov, d)
+    for which, want in ((False, want_e), (True, want_c)):
+        got = glsl_eval(
+            f"moments(mean, cov, vec2({d[0]}, {d[1]}), {str(which).lower()})",
+            {"mean": mean, "cov": cov},
+            out_components=3,
+            includes=(GLSL,),
+            target=target,
+            prelude=prelude,
+            uniforms={"coeffs": sh_uniform(coeffs), "worldFromTangent": frame.T.copy()},
+        )
+        np.testing.assert_allclose(got, want, atol=2e-6 * np.abs(want_e).max())

@@ -657,3 +657,51 @@ def test_slope_colour_under_light_against_monte_carlo():
     assert len(lit_err) >= 20
     assert np.mean(lit_err) < 0.25 * np.mean(plain_err), (np.mean(lit_err), np.mean(plain_err))
     assert np.mean(lit_err) < 0.008
+
+
+def test_slope_colour_under_an_environment_against_monte_carlo():
+    """The same term under an environment's irradiance E (SH9 of the low-sun sky), per channel:
+    E[C E] = C̄ Ē + ∂C̄/∂μ Cov(s_x, E) with Cov from irradiance.filtered_irradiance_moments, against
+    200 000 sampled slopes per case on frames tilted towards and away from the sun. Measured (mean over
+    the cases of the largest channel error, relative to the mean radiance): 0.028 for C̄ Ē alone, 0.0039
+    with the term."""
+    from pathlib import Path
+
+    from scipy.spatial.transform import Rotation
+
+    from prefilter.colormap.gaussian import gaussian_average
+    from prefilter.microsurface.irradiance import (
+        filtered_irradiance_moments,
+        irradiance_sh,
+        read_environment,
+        sh9_project,
+        slope_normals,
+    )
+    from prefilter.scene import resolve_scene
+
+    data = Path(__file__).resolve().parent.parent / "src/prefilter/scenes/data"
+    coeffs = sh9_project(read_environment(data / "sky-low-sun.exr"))
+    colours = resolve_scene("micro-slopes-sphere").objects[0].material.maps["slope"]
+    table, scale, offset = colours.table, colours.scale, colours.offset
+    rng = np.random.default_rng(8)
+    mean = rng.normal(0.0, 0.3, (16, 2))
+    cov = _random_covs(16, rng, 1e-3, 0.3)
+    d = np.array([1.0, 0.0])
+    plain_err, term_err = [], []
+    for k in range(len(mean)):
+        frame = Rotation.from_rotvec(rng.normal(0.0, 0.5, 3)).as_matrix()
+        s = rng.multivariate_normal(mean[k], cov[k], 200_000)
+        e = irradiance_sh(coeffs, slope_normals(frame, s))
+        truth = (table.point(scale * s[:, 0] + offset)[:, :3] * e).mean(axis=0)
+        e_mean, e_cov = filtered_irradiance_moments(coeffs, frame, mean[k], cov[k], d)
+        mu, sigma = scale * mean[k, 0] + offset, abs(scale) * np.sqrt(cov[k, 0, 0])
+        plain = gaussian_average(table, mu, sigma)[:3] * e_mean
+        h = max(0.5 * sigma, 1.0 / 256.0)
+        derivative = (gaussian_average(table, mu + h, sigma) - gaussian_average(table, mu - h, sigma)) / (
+            2.0 * h
+        )
+        with_term = np.maximum(plain + derivative[:3] * scale * e_cov, 0.0)
+        plain_err.append(np.abs(plain - truth).max() / truth.mean())
+        term_err.append(np.abs(with_term - truth).max() / truth.mean())
+    assert np.mean(term_err) < 0.25 * np.mean(plain_err), (np.mean(term_err), np.mean(plain_err))
+    assert np.mean(term_err) < 0.008, np.mean(term_err)

@@ -23,6 +23,7 @@
 // Functions
 //   vec3 ms_irradianceSH(vec3 coeffs[9], vec3 n)
 //   vec3 ms_filteredIrradianceSH(vec3 coeffs[9], mat3 worldFromTangent, vec2 mean, vec3 cov)
+//   vec3 ms_filteredIrradianceMomentsSH(..., vec2 direction, out vec3 covariance): also Cov(s·d, E)
 
 // A_l times the constant of Y_lm (RH2001 eq. 13: 2 c2, 2 c1, c4, c5, c1).
 const float MS_SH_K0 = 0.886226925;   // pi * 0.282095
@@ -39,22 +40,33 @@ vec3 ms_irradianceSH(vec3 coeffs[9], vec3 n) {
         + MS_SH_K22 * (n.x * n.x - n.y * n.y) * coeffs[8];
 }
 
-vec3 ms_filteredIrradianceSH(vec3 coeffs[9], mat3 worldFromTangent, vec2 mean, vec3 cov) {
+// Ē and, in `covariance`, Cov(s·d, E(n(s))) per channel for a slope direction d (the same nodes): what a
+// colour tied to the slope along d adds where it correlates with the irradiance (microsurface.frag).
+vec3 ms_filteredIrradianceMomentsSH(vec3 coeffs[9], mat3 worldFromTangent, vec2 mean, vec3 cov, vec2 direction,
+                                    out vec3 covariance) {
     // Cholesky factor [l11 0; l21 l22] of [[xx, xy], [xy, yy]], clamped to positive semi-definite.
     float l11 = sqrt(max(cov.x, 0.0));
     float l21 = l11 > 0.0 ? cov.y / l11 : 0.0;
     float l22 = sqrt(max(cov.z - l21 * l21, 0.0));
     vec3 sum = vec3(0.0);
+    covariance = vec3(0.0);
     for (int i = 0; i < 3; ++i) {
         float xi = 1.7320508 * float(i - 1);
         float wi = i == 1 ? 0.6666667 : 0.16666667;
         for (int j = 0; j < 3; ++j) {
             float xj = 1.7320508 * float(j - 1);
             float wj = j == 1 ? 0.6666667 : 0.16666667;
-            vec2 s = mean + vec2(l11 * xi, l21 * xi + l22 * xj);
-            vec3 n = normalize(worldFromTangent * vec3(-s, 1.0));
-            sum += (wi * wj) * ms_irradianceSH(coeffs, n);
+            vec2 offset = vec2(l11 * xi, l21 * xi + l22 * xj);
+            vec3 n = normalize(worldFromTangent * vec3(-(mean + offset), 1.0));
+            vec3 e = (wi * wj) * ms_irradianceSH(coeffs, n);
+            sum += e;
+            covariance += dot(offset, direction) * e;
         }
     }
     return sum;
+}
+
+vec3 ms_filteredIrradianceSH(vec3 coeffs[9], mat3 worldFromTangent, vec2 mean, vec3 cov) {
+    vec3 unused;
+    return ms_filteredIrradianceMomentsSH(coeffs, worldFromTangent, mean, cov, vec2(0.0), unused);
 }

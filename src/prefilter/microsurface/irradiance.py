@@ -34,7 +34,8 @@ constant over each pixel, and the projection integrates Y_lm over each pixel exa
 cos θ and φ), so that the coefficients are exact for the piecewise-constant map.
 
 Uniform layout (`sh_uniform`): float32 (9, 3), row k = coefficient L_k, columns RGB, for a GLSL
-`uniform vec3 name[9]` passed to ms_irradianceSH / ms_filteredIrradianceSH (irradiance.glsl).
+`uniform vec3 name[9]` passed to ms_irradianceSH / ms_filteredIrradianceSH / ms_filteredIrradianceMomentsSH
+(irradiance.glsl).
 Maps shipped in scenes/data/: sky-low-sun.exr, sky-high-sun.exr (procedural clear sky: Preetham sky,
 sun, Lambertian ground, sun elevation 12° and 50°; 256 x 128, made by scripts/make-sky.py).
 """
@@ -230,15 +231,27 @@ def filtered_irradiance(
     coeffs (9, 3); frame (..., 3, 3) world-from-tangent (columns: tangent, bitangent, normal in world);
     mean (..., 2) slopes; cov (..., 2, 2) or (..., 3) = (xx, xy, yy) (slope², dimensionless).
     """
+    return filtered_irradiance_moments(coeffs, frame, mean, cov, np.zeros(2))[0]
+
+
+def filtered_irradiance_moments(
+    coeffs: np.ndarray, frame: np.ndarray, mean: np.ndarray, cov: np.ndarray, direction: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(E_s[E(n(s))], Cov(s·d, E(n(s)))) for slopes s ~ N(mean, cov) and a slope direction d (2,), both
+    (..., 3) RGB, from the same 3x3 Gauss–Hermite nodes (twin of ms_filteredIrradianceMomentsSH). The
+    covariance is what a colour tied to the slope along d adds where it correlates with the irradiance."""
     mean = np.asarray(mean, dtype=np.float64)
+    direction = np.asarray(direction, dtype=np.float64)
     l11, l21, l22 = _cov_cholesky(cov)
     frame = np.asarray(frame, dtype=np.float64)
-    out = 0.0
+    total, covariance = 0.0, 0.0
     for xi, wi in zip(GH_NODES, GH_WEIGHTS, strict=True):
         for xj, wj in zip(GH_NODES, GH_WEIGHTS, strict=True):
-            s = mean + np.stack(np.broadcast_arrays(l11 * xi, l21 * xi + l22 * xj), axis=-1)
-            out = out + wi * wj * irradiance_sh(coeffs, slope_normals(frame, s))
-    return np.asarray(out)
+            offset = np.stack(np.broadcast_arrays(l11 * xi, l21 * xi + l22 * xj), axis=-1)
+            e = wi * wj * irradiance_sh(coeffs, slope_normals(frame, mean + offset))
+            total = total + e
+            covariance = covariance + (offset @ direction)[..., None] * e
+    return np.asarray(total), np.asarray(covariance)
 
 
 def sh_uniform(coeffs: np.ndarray) -> np.ndarray:

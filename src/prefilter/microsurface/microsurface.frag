@@ -102,13 +102,19 @@ vec4 ms_mapGaussian(sampler2D table, vec2 map, float mean, float variance, int w
 // ±h, h half the deviation (C̄_s is smooth on that scale) and at least one texel of the bake.
 // Measured (256 px, 64-spp references; FLIP of surface-filter before -> after): micro-slopes-sphere
 // 0.0904 -> 0.0832, micro-snake-sphere 0.0837 -> 0.0776; presets without a slope colour map are unchanged.
+// Under an environment's irradiance E (MS_IRRADIANCE) the same holds per channel: E[C_s E] = C̄_s Ē +
+// ∂C̄_s/∂μ Cov(s·d, E), with Cov from the irradiance's own cubature nodes (ms_filteredIrradianceMomentsSH).
 #ifdef MS_SLOPE_MAP
-vec4 ms_slopeColourUnderLight(vec4 cs, float mean, float varDir, float covOverMean) {
+vec4 ms_slopeColourDerivative(float mean, float varDir) {
     float texel = (u_slopeRange.y - u_slopeRange.x) / (float(textureSize(u_slopeGaussian, 0).x) * max(abs(u_slopeMap.x), 1e-30));
     float h = max(0.5 * sqrt(max(varDir, 0.0)), texel);
     vec4 above = ms_mapGaussian(u_slopeGaussian, u_slopeMap, mean + h, varDir, u_slopeWrap, u_slopeRange);
     vec4 below = ms_mapGaussian(u_slopeGaussian, u_slopeMap, mean - h, varDir, u_slopeWrap, u_slopeRange);
-    return clamp(cs + (above - below) / (2.0 * h) * covOverMean, 0.0, 1.0);
+    return (above - below) / (2.0 * h);
+}
+
+vec4 ms_slopeColourUnderLight(vec4 cs, float mean, float varDir, float covOverMean) {
+    return clamp(cs + ms_slopeColourDerivative(mean, varDir) * covOverMean, 0.0, 1.0);
 }
 #endif
 
@@ -472,7 +478,17 @@ void main() {
 #endif
         vec4 albedoView = ms_combine(c0, ch, cs);
 #ifdef MS_IRRADIANCE
+#ifdef MS_SLOPE_MAP
+        // The slope colour where the environment's light falls (as ms_slopeColourUnderLight, per channel):
+        // ms_combine is affine in C_s, so the term enters through its slope part.
+        vec3 irradianceCov;
+        vec3 irradiance = ms_filteredIrradianceMomentsSH(u_sh, MS_ENV_FROM_WORLD * worldFrame, visMean, visCov, dir,
+                                                         irradianceCov);
+        vec4 slopePart = ms_combine(c0, ch, cs + ms_slopeColourDerivative(dot(visMean, dir), visVarDir)) - albedoView;
+        sampleRadiance += max(albedoView.rgb * irradiance + slopePart.rgb * irradianceCov, 0.0) / MS_PI;
+#else
         sampleRadiance += albedoView.rgb * ms_filteredIrradianceSH(u_sh, MS_ENV_FROM_WORLD * worldFrame, visMean, visCov) / MS_PI;
+#endif
 #else
         sampleRadiance += albedoView.rgb * sh_ambient;
         for (int j = 0; j < SH_MAX_LIGHTS; ++j) {
