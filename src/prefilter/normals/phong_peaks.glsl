@@ -17,8 +17,11 @@
 
 const float ND_PI = 3.14159265358979;
 
+// cos^n as exp2(n log2 cos) behind a select, not pow(): on llvmpipe the two give bit-identical images, but
+// pow cost 17-19 % more of a `multilobe` frame on the unshadowed presets (2026-12-04, round-robin, ÷ `point`:
+// denim plane 26.4 -> 21.9, cylinders 19.7 -> 16.4, hemisphere sphere 14.4 -> 11.8; shadowed ones unchanged).
 float nd_lobe(float cosAlpha, float n) {
-    return (n + 1.0) / (2.0 * ND_PI) * pow(max(cosAlpha, 0.0), n);
+    return cosAlpha > 0.0 ? (n + 1.0) / (2.0 * ND_PI) * exp2(n * log2(max(cosAlpha, 1e-30))) : 0.0;
 }
 
 // The slopes of a unit direction w towards the horizons (+X, -X, +Y, -Y): w_z / |w_x| on the side w
