@@ -366,6 +366,8 @@ def test_glsl_irradiance_matches_python(target):
 
 @pytest.mark.parametrize("target", TARGETS)
 def test_glsl_filtered_irradiance_matches_python(target):
+    """ms_filteredIrradianceSH, and the covariance Cov(s·d, E) of ms_filteredIrradianceMomentsSH, against
+    their NumPy twins."""
     coeffs = sh9_project(read_environment(DATA / "sky-low-sun.exr"))
     rng = np.random.default_rng(5)
     frame = Rotation.random(random_state=9).as_matrix()
@@ -376,39 +378,18 @@ def test_glsl_filtered_irradiance_matches_python(target):
     cov = np.stack([cov2[:, 0, 0], cov2[:, 0, 1], cov2[:, 1, 1]], axis=-1)
     cov[:10] = 0.0  # degenerate footprints: the irradiance at the mean normal
     cov[10:20, 1:] = 0.0  # rank one: slopes spread along x only
-    got = glsl_eval(
-        "ms_filteredIrradianceSH(coeffs, worldFromTangent, mean, cov)",
-        {"mean": mean, "cov": cov},
-        out_components=3,
-        includes=(GLSL,),
-        target=target,
-        prelude=PRELUDE,
-        uniforms={"coeffs": sh_uniform(coeffs), "worldFromTangent": frame.T.copy()},
-    )
-    expected = filtered_irradiance(coeffs, frame, mean, cov)
-    np.testing.assert_allclose(got, expected, atol=2e-6 * np.abs(expected).max())
-
-
-@pytest.mark.parametrize("target", TARGETS)
-def test_glsl_irradiance_moments_match_python(target):
-    coeffs = sh9_project(read_environment(DATA / "sky-high-sun.exr"))
-    rng = np.random.default_rng(8)
-    frame = Rotation.random(random_state=4).as_matrix()
-    count = 200
-    mean = rng.normal(0.0, 0.4, (count, 2))
-    a = rng.normal(0.0, 0.3, (count, 2, 2))
-    cov2 = a @ np.swapaxes(a, 1, 2)
-    cov = np.stack([cov2[:, 0, 0], cov2[:, 0, 1], cov2[:, 1, 1]], axis=-1)
     d = np.array([0.6, -0.8])
     prelude = PRELUDE + (
-        "vec3 moments(vec2 mean, vec3 cov, vec2 d, bool covariance) { vec3 c;"
-        " vec3 e = ms_filteredIrradianceMomentsSH(coeffs, worldFromTangent, mean, cov, d, c);"
-        " return covariance ? c : e; }"
+        "vec3 covariance(vec2 mean, vec3 cov, vec2 d) { vec3 c;"
+        " ms_filteredIrradianceMomentsSH(coeffs, worldFromTangent, mean, cov, d, c); return c; }"
     )
-    want_e, want_c = filtered_irradiance_moments(coeffs, frame, mean, cov, d)
-    for which, want in ((False, want_e), (True, want_c)):
+    expected, expected_cov = filtered_irradiance_moments(coeffs, frame, mean, cov, d)
+    for expression, want in (
+        ("ms_filteredIrradianceSH(coeffs, worldFromTangent, mean, cov)", expected),
+        (f"covariance(mean, cov, vec2({d[0]}, {d[1]}))", expected_cov),
+    ):
         got = glsl_eval(
-            f"moments(mean, cov, vec2({d[0]}, {d[1]}), {str(which).lower()})",
+            expression,
             {"mean": mean, "cov": cov},
             out_components=3,
             includes=(GLSL,),
@@ -416,4 +397,4 @@ def test_glsl_irradiance_moments_match_python(target):
             prelude=prelude,
             uniforms={"coeffs": sh_uniform(coeffs), "worldFromTangent": frame.T.copy()},
         )
-        np.testing.assert_allclose(got, want, atol=2e-6 * np.abs(want_e).max())
+        np.testing.assert_allclose(got, want, atol=2e-6 * np.abs(expected).max())
