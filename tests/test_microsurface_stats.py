@@ -627,11 +627,12 @@ def test_glsl_lambert_moments_twin(target):
 
 
 def test_slope_colour_under_light_against_monte_carlo():
-    """microsurface.frag's ms_slopeColourUnderLight: E[C(x) L]/E[L] for x = scale s_x + offset through
-    micro-slopes-sphere's slope colour map, as C̄ + ∂C̄/∂μ Cov(s_x, L)/E[L] (Stein's lemma; ∂C̄/∂μ over ± half
-    the deviation; C̄ by colormap/gaussian.py's exact edge form), against 200 000 sampled slopes per case.
-    The plain filtered colour C̄ = E[C] misses by what the correlation of colour and light adds. Measured
-    (mean over the cases of the largest channel error): 0.043 for C̄ alone, 0.0056 with the term."""
+    """microsurface.frag's ms_slopeColourUnderLight (with ms_slopeColourDerivative): E[C(x) L]/E[L] for
+    x = scale s_x + offset through micro-slopes-sphere's slope colour map, as C̄ + ∂C̄/∂μ Cov(s_x, L)/E[L]
+    (Stein's lemma; ∂C̄/∂μ over ± half the deviation; C̄ by colormap/gaussian.py's exact edge form),
+    against 200 000 sampled slopes per case. The plain filtered colour C̄ = E[C] misses by what the
+    correlation of colour and light adds. Measured (mean over the cases of the largest channel error):
+    0.043 for C̄ alone, 0.0056 with the term."""
     from prefilter.colormap.gaussian import gaussian_average
     from prefilter.scene import resolve_scene
 

@@ -113,8 +113,9 @@ vec4 ms_slopeColourDerivative(float mean, float varDir) {
     return (above - below) / (2.0 * h);
 }
 
-vec4 ms_slopeColourUnderLight(vec4 cs, float mean, float varDir, float covOverMean) {
-    return clamp(cs + ms_slopeColourDerivative(mean, varDir) * covOverMean, 0.0, 1.0);
+// derivative = ms_slopeColourDerivative at the sample, computed once for all its lights and the environment.
+vec4 ms_slopeColourUnderLight(vec4 cs, vec4 derivative, float covOverMean) {
+    return clamp(cs + derivative * covOverMean, 0.0, 1.0);
 }
 #endif
 
@@ -469,6 +470,7 @@ void main() {
 #ifdef MS_SLOPE_MAP
         float visVarDir = dir.x * dir.x * visCov.x + 2.0 * dir.x * dir.y * visCov.y + dir.y * dir.y * visCov.z;
         cs = ms_mapGaussian(u_slopeGaussian, u_slopeMap, dot(visMean, dir), visVarDir, u_slopeWrap, u_slopeRange);
+        vec4 csDerivative = ms_slopeColourDerivative(dot(visMean, dir), visVarDir);  // ∂C̄_s/∂μ, for lit colours
 #endif
         float perturbVariance = u_perturb * u_perturb * textureVariance;
         // The view alone (ambient, environment light): Λ_i = 0, V̄ = 1.
@@ -484,7 +486,7 @@ void main() {
         vec3 irradianceCov;
         vec3 irradiance = ms_filteredIrradianceMomentsSH(u_sh, MS_ENV_FROM_WORLD * worldFrame, visMean, visCov, dir,
                                                          irradianceCov);
-        vec4 slopePart = ms_combine(c0, ch, cs + ms_slopeColourDerivative(dot(visMean, dir), visVarDir)) - albedoView;
+        vec4 slopePart = ms_combine(c0, ch, cs + csDerivative) - albedoView;
         sampleRadiance += max(albedoView.rgb * irradiance + slopePart.rgb * irradianceCov, 0.0) / MS_PI;
 #else
         sampleRadiance += albedoView.rgb * ms_filteredIrradianceSH(u_sh, MS_ENV_FROM_WORLD * worldFrame, visMean, visCov) / MS_PI;
@@ -524,7 +526,7 @@ void main() {
             float cosine = lambert.x;
             if (cosine <= 0.0) continue;
 #ifdef MS_SLOPE_MAP
-            vec4 csLit = ms_slopeColourUnderLight(cs, dot(visMean, dir), visVarDir, dot(dir, lambert.yz) / cosine);
+            vec4 csLit = ms_slopeColourUnderLight(cs, csDerivative, dot(dir, lambert.yz) / cosine);
 #else
             vec4 csLit = cs;
 #endif

@@ -236,7 +236,8 @@ def mean_fraction_fit() -> tuple[float, float, float, float]:
 
 
 def mean_fraction(rho1: np.ndarray, rho2: np.ndarray) -> np.ndarray:
-    """NumPy twin of ns_meanFraction: β₁ of a footprint with axis lengths ρ1, ρ2 (lattice units)."""
+    """NumPy twin of ns_meanFractions(ρ1², ρ2²).y: β₁ of a footprint with axis lengths ρ1, ρ2 (lattice
+    units)."""
     fit = mean_fraction_fit()
     return _rational_fall(rho1, *fit) * _rational_fall(rho2, *fit)
 
