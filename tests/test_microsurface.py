@@ -379,12 +379,18 @@ def test_shading_samples_bring_the_sphere_closer_to_the_ray_marched_reference(pr
     """Octaves that the footprint half resolves: shading the pixel at N x N sub-pixel points with a 1/N
     footprint's split (shading_samples, 4 by default) is closer to the supersampled explicit microgeometry
     than one sample at the pixel centre (at 256 px against 256 spp the height sphere goes 0.079 -> 0.061,
-    and against 64 spp the slope sphere 0.133 -> 0.095)."""
+    and against 64 spp the slope sphere 0.133 -> 0.095). 3 x 2 samples, three along the footprint's
+    longer axis, are closer than 2 x 2 on the height sphere (at 256 px against 64 spp: 0.0509 -> 0.0484; at
+    128 px 0.0592 -> 0.0573). On the slope sphere they gain at 256 px (0.0775 -> 0.0755) but not measurably
+    at this test's 128 px (0.0941 -> 0.0938), so it is not asserted there."""
     from prefilter.scene import resolve_scene
 
     assert resolve_scene(preset).objects[0].material.shading_samples == 4
-    flip = _flip_of_material_variants(preset, (128, 128), "shading_samples", (1, 4, 9), ("surface-filter",))
+    samples = (1, 4, 6, 9)
+    flip = _flip_of_material_variants(preset, (128, 128), "shading_samples", samples, ("surface-filter",))
     assert flip[9, "surface-filter"] < flip[4, "surface-filter"] < 0.95 * flip[1, "surface-filter"], flip
+    if preset == "micro-heights-sphere":
+        assert flip[6, "surface-filter"] < 0.99 * flip[4, "surface-filter"], flip
 
 
 SLOPES_UNDER_SKY = """

@@ -18,9 +18,10 @@ Scene TOML (under [object.material], type = "microsurface"):
   footprint = "relief" | "macro"   the pixel footprint that splits the octaves into geometry and
       statistics: on the visible relief, foreshortened by facets facing a grazing eye (heightfield.glsl
       ms_reliefFootprint), or on the macro surface
-  shading_samples = 4 | 9 | 16 | 1   surface-filter shades the pixel at N x N sub-pixel points with the
-      octaves split for a 1/N footprint and averages them (microsurface.frag: the octaves the footprint
-      half resolves are then integrated over the pixel, not sampled once), or once, as the paper does
+  shading_samples = 4 | 6 | 9 | 16 | 1   surface-filter shades the pixel at N x M sub-pixel points (2 x 2,
+      3 x 2 with 3 along the footprint's longer screen axis, 3 x 3, 4 x 4) with the octaves split for the
+      sub-boxes' footprint and averages them (microsurface.frag: the octaves the footprint half resolves are
+      then integrated over the pixel, not sampled once), or once, as the paper does
   [height_colour], [slope_colour], [texture_colour]: scale = 1, offset = 0 (argument = scale·x + offset),
       [....colour_table] as for Hart's model, [....preconvolved] as for the gaussian mode
   [transfer]         function = "moss" | "sponge" | "linear" (microsurface/transfer.py), its parameters,
@@ -48,6 +49,8 @@ SHADER_DIR = Path(__file__).resolve().parent
 PACKAGE_ROOT = SHADER_DIR.parent
 FILTERED_MODES = ("texture-filter", "surface-filter")
 MAPS = ("height", "slope", "texture")
+# shading_samples -> the sub-pixel grid (MS_GRID_X along the footprint's longer screen axis, MS_GRID_Y)
+SHADING_GRIDS = {1: (1, 1), 4: (2, 2), 6: (3, 2), 9: (3, 3), 16: (4, 4)}
 
 
 @dataclass
@@ -102,7 +105,7 @@ class MicrosurfaceMaterial:
             defines["MS_MACRO_FOOTPRINT"] = True
         if self.transfer is not None:
             defines["MS_TRANSFER"] = True
-        defines["MS_SHADING_GRID"] = round(self.shading_samples**0.5)
+        defines["MS_GRID_X"], defines["MS_GRID_Y"] = SHADING_GRIDS[self.shading_samples]
         if self.environment is not None:
             defines["MS_IRRADIANCE"] = True
         return defines
@@ -249,8 +252,8 @@ def parse_microsurface(r: Reader, base_dir: Path) -> MicrosurfaceMaterial:
     moments = r.string("height_moments", "table", choices=("table", "log-fit"))
     footprint = r.string("footprint", "relief", choices=("relief", "macro"))
     shading_samples = r.integer("shading_samples", 4)
-    if shading_samples not in (1, 4, 9, 16):
-        raise r.fail("shading_samples", f"must be 1, 4, 9 or 16, got {shading_samples}")
+    if shading_samples not in SHADING_GRIDS:
+        raise r.fail("shading_samples", f"must be 1, 4, 6, 9 or 16, got {shading_samples}")
     transfer, transfer_scale = None, 1.0
     xr = r.child("transfer")
     if xr is not None:

@@ -30,10 +30,15 @@ uniform vec3 u_sh[9];
 const mat3 MS_ENV_FROM_WORLD = mat3(vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), vec3(0.0, -1.0, 0.0));
 #endif
 
-#ifndef MS_SHADING_GRID
-#define MS_SHADING_GRID 1
+// Shading samples of surface-filter: an MS_GRID_X x MS_GRID_Y grid of sub-pixel points, X along the longer
+// screen axis of the footprint (shading_samples 6 = 3 x 2; 1, 4, 9, 16 are square).
+#ifndef MS_GRID_X
+#define MS_GRID_X 1
 #endif
-#define MS_SHADING_SAMPLES (MS_SHADING_GRID * MS_SHADING_GRID)
+#ifndef MS_GRID_Y
+#define MS_GRID_Y MS_GRID_X
+#endif
+#define MS_SHADING_SAMPLES (MS_GRID_X * MS_GRID_Y)
 // Shadow rays near the terminator graze the relief over long paths; one that runs out of steps counts as
 // unoccluded, so every mode gives them the point mode's budget.
 #ifndef MS_SHADOW_STEPS
@@ -364,8 +369,8 @@ void main() {
     //
     // Shading samples (beyond the paper): the octaves that the footprint half resolves are neither
     // geometry nor noise; one sample of them at the pixel centre misses their pixel mean by a random amount,
-    // which was most of the error left (per-pixel noise, not bias). With MS_SHADING_GRID = N > 1 the pixel
-    // is shaded at its N x N sub-pixel points with the octaves split for a 1/N footprint (its N² sub-boxes),
+    // which was most of the error left (per-pixel noise, not bias). With an N x M grid (MS_GRID_X, MS_GRID_Y)
+    // the pixel is shaded at its N x M sub-pixel points with the octaves split for the sub-boxes' footprint,
     // and the radiances are averaged, each weighted by its facet's area projected towards the eye (the
     // share of the pixel's rays it catches). A sub-pixel point is where the sub-pixel
     // ray meets the marched surface's tangent plane at the marched point (ms_subpixelPoint); no ray is
@@ -393,8 +398,12 @@ void main() {
     for (int j = 0; j < SH_MAX_LIGHTS; ++j) shadows[j] = vec4(-1e30);
     // the farthest sample's offset from the centre, and the most its clearance can differ from the centre's
 #if MS_SHADING_SAMPLES > 1
-    float spacing = (1.0 - ms_reliefGate) * float(MS_SHADING_GRID - 1) / float(2 * MS_SHADING_GRID)
-                  * max(length(dpdx + dpdy), length(dpdx - dpdy));
+    // the grid's axes: X along the footprint's longer screen axis (they matter only for an N x M grid)
+    bool swapAxes = length(dpdy) > length(dpdx);
+    vec3 gridX = swapAxes ? dpdy : dpdx, gridY = swapAxes ? dpdx : dpdy;
+    vec3 gridXMacro = swapAxes ? dpdyMacro : dpdxMacro, gridYMacro = swapAxes ? dpdxMacro : dpdyMacro;
+    vec2 reach = (1.0 - ms_reliefGate) * vec2(MS_GRID_X - 1, MS_GRID_Y - 1) / vec2(2 * MS_GRID_X, 2 * MS_GRID_Y);
+    float spacing = max(length(reach.x * gridX + reach.y * gridY), length(reach.x * gridX - reach.y * gridY));
 #else
     float spacing = 0.0;
 #endif
@@ -416,9 +425,9 @@ void main() {
     float footprintSlopeVariance = ms_slopeVariance;
 #if MS_SHADING_SAMPLES > 1
     // Where the relief stands out of the pixel it is geometry already: the samples close up on the centre.
-    float sub = mix(1.0 / float(MS_SHADING_GRID), 1.0, ms_reliefGate);
+    vec2 sub = mix(1.0 / vec2(MS_GRID_X, MS_GRID_Y), vec2(1.0), ms_reliefGate);  // the sub-box, in pixel axes
     vec3 marchedNormal = normalize(frame * vec3(-ms_surfaceAt(p, frame).slope, 1.0));
-    ms_setWeights(sub * dpdx, sub * dpdy, false);
+    ms_setWeights(sub.x * gridX, sub.y * gridY, false);
 #endif
     // What the 1/N footprint resolves beyond the whole one (0 with one sample): the samples show it.
     footprint.sampledHeightVariance = footprintHeightVariance - ms_heightVariance;
@@ -449,10 +458,10 @@ void main() {
         if (k >= sampleCount) break;
         vec3 sampleRadiance = vec3(0.0);
 #if MS_SHADING_SAMPLES > 1
-        vec2 offset = (vec2(k % MS_SHADING_GRID, k / MS_SHADING_GRID) + 0.5 - 0.5 * float(MS_SHADING_GRID))
-                    * (1.0 - ms_reliefGate) / float(MS_SHADING_GRID);
-        vec3 pk = ms_subpixelPoint(p0 + offset.x * dpdxMacro + offset.y * dpdyMacro, d, q, marchedNormal,
-                                   offset.x * dpdx + offset.y * dpdy);
+        vec2 offset = (vec2(k % MS_GRID_X, k / MS_GRID_X) + 0.5 - 0.5 * vec2(MS_GRID_X, MS_GRID_Y))
+                    * (1.0 - ms_reliefGate) / vec2(MS_GRID_X, MS_GRID_Y);
+        vec3 pk = ms_subpixelPoint(p0 + offset.x * gridXMacro + offset.y * gridYMacro, d, q, marchedNormal,
+                                   offset.x * gridX + offset.y * gridY);
         MsSurface s = ms_surfaceAt(ms_project(pk), frame);
 #else
         MsSurface s = ms_surfaceAt(p, frame);
@@ -511,7 +520,7 @@ void main() {
                 qHeight = ms_surfaceHeight(p);
                 shadows[j] = ms_shadowProfile(q, l, MS_SHADOW_STEPS, shadowReach, skip);
 #if MS_SHADING_SAMPLES > 1
-                ms_setWeights(sub * dpdx, sub * dpdy, false);
+                ms_setWeights(sub.x * gridX, sub.y * gridY, false);
 #endif
             }
 #if MS_SHADING_SAMPLES > 1
