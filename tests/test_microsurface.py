@@ -393,13 +393,15 @@ def test_shading_samples_bring_the_sphere_closer_to_the_ray_marched_reference(pr
         assert flip[6, "surface-filter"] < 0.99 * flip[4, "surface-filter"], flip
 
 
-def test_shading_sample_weights_keep_the_snakes_grazing_rows_from_turning_red():
-    """Each shading sample's share of the pixel is its facets' expected area projected towards the eye,
-    E[(o_z - s·o_xy)⁺] over its slopes (coarse mean and micro covariance). With the coarse slope's
-    (o_z - s̄·o_xy)⁺ alone, samples whose coarse facet turns away got no share although their micro-facets
-    show, and at grazing views the facets that face the eye, red on the snake, were over-weighted. Against
-    a 16-spp ray-marched reference at 128 px, the upper third of the snake sphere (seen at grazing angles)
-    is too red by 0.0016 per pixel in the mean (0.0027 with the coarse-slope weights)."""
+def test_shading_samples_keep_the_snakes_grazing_rows_from_turning_red():
+    """At grazing views the facets that face the eye are red on the snake, and the shading samples once
+    counted that preference twice: each sample weighted by its coarse facet alone, (o_z - s̄·o_xy)⁺, gave
+    none to samples whose coarse facet turns away although their micro-facets show; and the samples were
+    placed on the plane tilted as the surface is at the centre ray's hit, a visible point, so leaning
+    towards the eye. Now each sample's weight is its facets' expected projected area E[(o_z - s·o_xy)⁺] and
+    the plane carries the coarse surface's tilt over twice the pixel. Against a 16-spp ray-marched
+    reference at 128 px, the mean red excess in the snake's upper third is 0.0002 per pixel (0.0027 with
+    both old choices, 0.0016 with the new weights alone)."""
     from prefilter.gl.render import Renderer, composite, coverage_mask
     from prefilter.scene import resolve_scene
 
@@ -415,7 +417,7 @@ def test_shading_sample_weights_keep_the_snakes_grazing_rows_from_turning_red():
     upper = mask.copy()
     upper[rows[0] + (rows[-1] - rows[0]) // 3 :] = False
     excess = composite(image, scene.background) - composite(reference, scene.background)
-    assert excess[upper].mean(axis=0)[0] < 0.0022, excess[upper].mean(axis=0)
+    assert abs(excess[upper].mean(axis=0)[0]) < 0.001, excess[upper].mean(axis=0)
 
 
 SLOPES_UNDER_SKY = """

@@ -135,6 +135,27 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
 #endif
 }
 
+// The slope (macro tangent frame) at p of the coarse surface that a footprint (dpdx, dpdy) keeps: the height
+// octaves weighted as ms_setWeights would weight them for that footprint (with a transfer function, times
+// E[g'] at the current split's σ_f), without changing the current split.
+vec2 ms_coarseSlope(vec3 p, mat3 frame, vec3 dpdx, vec3 dpdy) {
+    vec3 lx = ms_latticeFromObject * dpdx;
+    vec3 ly = ms_latticeFromObject * dpdy;
+    vec3 lp = ms_latticeFromObject * p;
+    vec4 fg = vec4(0.0);
+    for (int k = 0; k < MS_MAX_OCTAVES; ++k) {
+        if (k >= ms_heightOctaves) break;
+        vec2 af = ms_octave[k];
+        float wa = ms_meanFraction(af.y * lx, af.y * ly) * af.x;
+        vec4 n = nz_noiseGrad(af.y * lp + ms_octaveOffset[k]);
+        fg += vec4(wa * af.y * (n.xyz * ms_latticeFromObject), wa * n.w);
+    }
+#ifdef MS_TRANSFER
+    fg.xyz *= ms_transfer(fg.w, ms_transferSigma).z;  // ∇E[g(f)] = E[g'] ∇f
+#endif
+    return vec2(dot(fg.xyz, frame[0]), dot(fg.xyz, frame[1]));
+}
+
 // Σ_k w_k a_k n(f_k R p + o_k) over octaves [first, first + count).
 float ms_fractal(vec3 p, int first, int count) {
     vec3 lp = ms_latticeFromObject * p;
