@@ -360,6 +360,20 @@ def _flip_of_material_variants(preset, size, key, values, modes):
     return flip
 
 
+def _against_reference(scene, size, modes):
+    """A 16-spp ray-marched reference of `scene` at `size` and renders of `modes`, composited on its
+    background: (reference, coverage mask, {mode: image})."""
+    from prefilter.gl.render import Renderer, composite, coverage_mask
+
+    renderer = Renderer(scene, size)
+    try:
+        reference = renderer.reference(16)
+        images = {mode: composite(renderer.render(mode), scene.background) for mode in modes}
+    finally:
+        renderer.release()
+    return composite(reference, scene.background), coverage_mask(reference), images
+
+
 def test_relief_footprint_brings_the_grazing_terrain_closer_to_the_ray_marched_reference():
     """At a grazing view the relief stands out of the pixels: splitting the octaves over the footprint on
     the facets that face the eye (ms_reliefFootprint) keeps their silhouettes and shadows as geometry,
@@ -402,21 +416,15 @@ def test_shading_samples_keep_the_snakes_grazing_rows_from_turning_red():
     the plane carries the coarse surface's tilt over twice the pixel. Against a 16-spp ray-marched
     reference at 128 px, the mean red excess in the snake's upper third is 0.0002 per pixel (0.0027 with
     both old choices, 0.0016 with the new weights alone)."""
-    from prefilter.gl.render import Renderer, composite, coverage_mask
     from prefilter.scene import resolve_scene
 
-    scene = resolve_scene("micro-snake-sphere")
-    renderer = Renderer(scene, (128, 128))
-    try:
-        reference = renderer.reference(16)
-        image = renderer.render("surface-filter")
-    finally:
-        renderer.release()
-    mask = coverage_mask(reference)
+    reference, mask, images = _against_reference(
+        resolve_scene("micro-snake-sphere"), (128, 128), ["surface-filter"]
+    )
     rows = np.nonzero(mask.any(axis=1))[0]
     upper = mask.copy()
     upper[rows[0] + (rows[-1] - rows[0]) // 3 :] = False
-    excess = composite(image, scene.background) - composite(reference, scene.background)
+    excess = images["surface-filter"] - reference
     assert abs(excess[upper].mean(axis=0)[0]) < 0.001, excess[upper].mean(axis=0)
 
 
@@ -460,7 +468,6 @@ def test_slope_colours_under_an_environment_keep_the_reference_mean(tmp_path):
     spp: 0.132 -> 0.106)."""
     from pathlib import Path
 
-    from prefilter.gl.render import Renderer, composite, coverage_mask
     from prefilter.metrics import compare
     from prefilter.scene import resolve_scene
 
@@ -468,16 +475,7 @@ def test_slope_colours_under_an_environment_keep_the_reference_mean(tmp_path):
     path = tmp_path / "slopes-under-sky.toml"
     path.write_text(SLOPES_UNDER_SKY.replace("ENVIRONMENT", sky.as_posix()))
     scene = resolve_scene(str(path))
-    renderer = Renderer(scene, scene.size)
-    try:
-        reference = renderer.reference(16)
-        mask = coverage_mask(reference)
-        ref = composite(reference, scene.background)
-        images = {
-            m: composite(renderer.render(m), scene.background) for m in ("texture-filter", "surface-filter")
-        }
-    finally:
-        renderer.release()
+    ref, mask, images = _against_reference(scene, scene.size, ("texture-filter", "surface-filter"))
     assert mask.mean() > 0.5
     bias = images["surface-filter"][mask].mean(axis=0) - ref[mask].mean(axis=0)
     assert np.abs(bias).max() < 0.005, bias
@@ -509,20 +507,13 @@ def test_tall_relief_on_a_sphere_takes_light_from_below_the_macro_horizon():
     ray-marched reference the band n·l in [-0.12, 0) is lit; surface-filter matches its mean radiance
     (it was 40 % too dark when lights below the macro horizon were dropped) and the band beyond stays as
     dark as the reference (shadow rays that ran out of steps let light through there)."""
-    from prefilter.gl.render import Renderer, composite, coverage_mask
     from prefilter.scene import resolve_scene
 
     scene = resolve_scene("micro-moss-sphere")
     size = (128, 128)
-    renderer = Renderer(scene, size)
-    try:
-        ref_rgba = renderer.reference(16)
-        image = composite(renderer.render("surface-filter"), scene.background).mean(-1)
-    finally:
-        renderer.release()
-    ref = composite(ref_rgba, scene.background).mean(-1)
+    ref, covered, images = _against_reference(scene, size, ["surface-filter"])
+    ref, image = ref.mean(-1), images["surface-filter"].mean(-1)
     cosine = _macro_sphere_cosine(scene, size)
-    covered = coverage_mask(ref_rgba)
     below = covered & (cosine >= -0.12) & (cosine < 0.0)
     beyond = covered & (cosine >= -0.3) & (cosine < -0.18)
     assert below.sum() > 150 and beyond.sum() > 150

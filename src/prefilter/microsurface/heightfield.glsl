@@ -135,27 +135,6 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
 #endif
 }
 
-// The slope (macro tangent frame) at p of the coarse surface that a footprint (dpdx, dpdy) keeps: the height
-// octaves weighted as ms_setWeights would weight them for that footprint (with a transfer function, times
-// E[g'] at the current split's σ_f), without changing the current split.
-vec2 ms_coarseSlope(vec3 p, mat3 frame, vec3 dpdx, vec3 dpdy) {
-    vec3 lx = ms_latticeFromObject * dpdx;
-    vec3 ly = ms_latticeFromObject * dpdy;
-    vec3 lp = ms_latticeFromObject * p;
-    vec4 fg = vec4(0.0);
-    for (int k = 0; k < MS_MAX_OCTAVES; ++k) {
-        if (k >= ms_heightOctaves) break;
-        vec2 af = ms_octave[k];
-        float wa = ms_meanFraction(af.y * lx, af.y * ly) * af.x;
-        vec4 n = nz_noiseGrad(af.y * lp + ms_octaveOffset[k]);
-        fg += vec4(wa * af.y * (n.xyz * ms_latticeFromObject), wa * n.w);
-    }
-#ifdef MS_TRANSFER
-    fg.xyz *= ms_transfer(fg.w, ms_transferSigma).z;  // ∇E[g(f)] = E[g'] ∇f
-#endif
-    return vec2(dot(fg.xyz, frame[0]), dot(fg.xyz, frame[1]));
-}
-
 // Σ_k w_k a_k n(f_k R p + o_k) over octaves [first, first + count).
 float ms_fractal(vec3 p, int first, int count) {
     vec3 lp = ms_latticeFromObject * p;
@@ -170,6 +149,13 @@ float ms_fractal(vec3 p, int first, int count) {
     return value;
 }
 
+// (∇ in object space, value) of octave i, a_i n(f_i R p + o_i), unweighted; lp = R p.
+vec4 ms_octaveGrad(vec3 lp, int i) {
+    vec4 n = nz_noiseGrad(ms_octave[i].y * lp + ms_octaveOffset[i]);
+    float a = ms_octave[i].x;
+    return vec4(a * ms_octave[i].y * (n.xyz * ms_latticeFromObject), a * n.w);
+}
+
 // (∇ in object space, value) of the same sum.
 vec4 ms_fractalGrad(vec3 p, int first, int count) {
     vec3 lp = ms_latticeFromObject * p;
@@ -178,12 +164,29 @@ vec4 ms_fractalGrad(vec3 p, int first, int count) {
         if (k >= count) break;
         int i = first + k;
         if (ms_weight[i] > 0.0) {
-            vec4 n = nz_noiseGrad(ms_octave[i].y * lp + ms_octaveOffset[i]);
-            float a = ms_weight[i] * ms_octave[i].x;
-            result += vec4(a * ms_octave[i].y * (n.xyz * ms_latticeFromObject), a * n.w);
+            result += ms_weight[i] * ms_octaveGrad(lp, i);
         }
     }
     return result;
+}
+
+// The slope (macro tangent frame) at p of the coarse surface that a footprint (dpdx, dpdy) keeps: the height
+// octaves weighted as ms_setWeights would weight them for that footprint (with a transfer function, times
+// E[g'] at the current split's σ_f), without changing the current split.
+vec2 ms_coarseSlope(vec3 p, mat3 frame, vec3 dpdx, vec3 dpdy) {
+    vec3 lx = ms_latticeFromObject * dpdx;
+    vec3 ly = ms_latticeFromObject * dpdy;
+    vec3 lp = ms_latticeFromObject * p;
+    vec4 fg = vec4(0.0);
+    for (int k = 0; k < MS_MAX_OCTAVES; ++k) {
+        if (k >= ms_heightOctaves) break;
+        float f = ms_octave[k].y;
+        fg += ms_meanFraction(f * lx, f * ly) * ms_octaveGrad(lp, k);
+    }
+#ifdef MS_TRANSFER
+    fg.xyz *= ms_transfer(fg.w, ms_transferSigma).z;  // ∇E[g(f)] = E[g'] ∇f
+#endif
+    return vec2(dot(fg.xyz, frame[0]), dot(fg.xyz, frame[1]));
 }
 
 // --- the macro surface ----------------------------------------------------------------------------
