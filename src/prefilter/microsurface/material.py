@@ -22,6 +22,9 @@ Scene TOML (under [object.material], type = "microsurface"):
       3 x 2 with 3 along the footprint's longer screen axis, 3 x 3, 4 x 4) with the octaves split for the
       sub-boxes' footprint and averages them (microsurface.frag: the octaves the footprint half resolves are
       then integrated over the pixel, not sampled once), or once, as the paper does
+  relief_rays = 1 | 2 | 3 | 4   surface-filter: where the coarse relief stands out of the pixel, that many
+      sub-rays spread over the pixel's extent along the macro normal, marched as one column (heightfield.glsl
+      ms_marchColumn) and each shaded; their mean is the pixel (1: the centre ray alone)
   [height_colour], [slope_colour], [texture_colour]: scale = 1, offset = 0 (argument = scale·x + offset),
       [....colour_table] as for Hart's model, [....preconvolved] as for the gaussian mode
   [transfer]         function = "moss" | "sponge" | "linear" (microsurface/transfer.py), its parameters,
@@ -75,6 +78,7 @@ class MicrosurfaceMaterial:
     height_moments: str = "table"
     footprint: str = "relief"
     shading_samples: int = 4
+    relief_rays: int = 1
     transfer: object | None = None  # microsurface.transfer.TransferFunction
     transfer_scale: float = 1.0  # h = transfer_scale · g(f)
     environment: Path | None = None
@@ -106,6 +110,7 @@ class MicrosurfaceMaterial:
         if self.transfer is not None:
             defines["MS_TRANSFER"] = True
         defines["MS_GRID_X"], defines["MS_GRID_Y"] = SHADING_GRIDS[self.shading_samples]
+        defines["MS_RELIEF_RAYS"] = self.relief_rays
         if self.environment is not None:
             defines["MS_IRRADIANCE"] = True
         return defines
@@ -254,6 +259,7 @@ def parse_microsurface(r: Reader, base_dir: Path) -> MicrosurfaceMaterial:
     shading_samples = r.integer("shading_samples", 4)
     if shading_samples not in SHADING_GRIDS:
         raise r.fail("shading_samples", f"must be 1, 4, 6, 9 or 16, got {shading_samples}")
+    relief_rays = r.integer("relief_rays", 1, lo=1, hi=4)
     transfer, transfer_scale = None, 1.0
     xr = r.child("transfer")
     if xr is not None:
@@ -289,6 +295,7 @@ def parse_microsurface(r: Reader, base_dir: Path) -> MicrosurfaceMaterial:
         moments,
         footprint,
         shading_samples,
+        relief_rays,
         transfer,
         transfer_scale,
         environment,

@@ -273,24 +273,9 @@ float ms_facetMicroVisibility(MsMasking m, vec3 wo, vec3 wi, vec2 slope) {
 }
 #endif
 
-void main() {
-    vec3 p0 = v_solid;
-    vec3 dpdxMacro = dFdx(p0);
-    vec3 dpdyMacro = dFdy(p0);
-    vec3 dpdx = dpdxMacro;
-    vec3 dpdy = dpdyMacro;
-    vec3 d = u_eyeObject.w > 0.5 ? normalize(p0 - u_eyeObject.xyz) : normalize(u_eyeObject.xyz);
-#if defined(MODE_POINT) || defined(MODE_MARCH_STEPS)
-    ms_setWeights(dpdx, dpdy, true);
-#else
-    ms_reliefFootprint(p0, d, dpdx, dpdy);
-    ms_setWeights(dpdx, dpdy, false);
-#endif
-    vec3 o = u_eyeObject.w > 0.5 ? u_eyeObject.xyz : p0 - d * (4.0 * (ms_radius + ms_heightBound) + 1.0);
-    vec3 slab = ms_slab(o, d, ms_heightBound);
-    if (slab.y < slab.x) discard;
-    float t = ms_march(o, d, slab, MS_MAX_STEPS, true);
-    if (t < 0.0) discard;
+// The pixel's radiance from its visible point q = o + t d (|d| = 1) on the marched coarse surface. gate: how
+// far the shading samples close up on q (ms_reliefGate; 1 where a column of sub-rays covers the pixel).
+vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, vec3 dpdx, vec3 dpdy, float gate) {
     vec3 q = o + t * d;
 #if !defined(MODE_POINT) && !defined(MODE_MARCH_STEPS)
     // the pixel's radius across the ray at q
@@ -374,7 +359,7 @@ void main() {
     // and the radiances are averaged, each weighted by its facets' expected area projected towards the eye
     // (the share of the pixel's rays it catches; below). A sub-pixel point is where the sub-pixel
     // ray meets a plane through the marched point (ms_subpixelPoint, below); no ray is
-    // marched again. Where the relief stands out of the pixel (ms_reliefGate) it is geometry already and
+    // marched again. Where the relief stands out of the pixel (gate) it is geometry already and
     // the samples close up on the centre with the full footprint's split. The march, the coarse surface's
     // shadows (once per light, below) and the masking statistics stay those of the whole footprint: the
     // samples resolve what the 1/N footprint adds (sampled*Variance), and D_h's variance keeps only the
@@ -394,15 +379,13 @@ void main() {
     // naive unchanged within the timing noise): micro-heights-sphere 0.0598 -> 0.0517, micro-snake-sphere
     // 0.0859 -> 0.0830, micro-slopes-sphere 0.0940 -> 0.0897; the terrains, moss and sponge, where the
     // samples close up on the centre, are unchanged.
-    vec4 shadows[SH_MAX_LIGHTS];  // of the coarse surface: ms_shadowProfile, traced once per light when needed
-    for (int j = 0; j < SH_MAX_LIGHTS; ++j) shadows[j] = vec4(-1e30);
     // the farthest sample's offset from the centre, and the most its clearance can differ from the centre's
 #if MS_SHADING_SAMPLES > 1
     // the grid's axes: X along the footprint's longer screen axis (they matter only for an N x M grid)
     bool swapAxes = length(dpdy) > length(dpdx);
     vec3 gridX = swapAxes ? dpdy : dpdx, gridY = swapAxes ? dpdx : dpdy;
     vec3 gridXMacro = swapAxes ? dpdyMacro : dpdxMacro, gridYMacro = swapAxes ? dpdxMacro : dpdyMacro;
-    vec2 reach = (1.0 - ms_reliefGate) * vec2(MS_GRID_X - 1, MS_GRID_Y - 1) / vec2(2 * MS_GRID_X, 2 * MS_GRID_Y);
+    vec2 reach = (1.0 - gate) * vec2(MS_GRID_X - 1, MS_GRID_Y - 1) / vec2(2 * MS_GRID_X, 2 * MS_GRID_Y);
     float spacing = max(length(reach.x * gridX + reach.y * gridY), length(reach.x * gridX - reach.y * gridY));
 #else
     float spacing = 0.0;
@@ -414,7 +397,6 @@ void main() {
     float linearity = 1.0 - smoothstep(0.5, 2.0, spacing * ms_coarseFrequency);
     spacing *= linearity;
     float shadowReach = ms_slopeBound * spacing;
-    float qHeight = 0.0;  // the marched surface's height at q (q is off it by the march's tolerance), set with the first shadow ray
     // The whole footprint's split: the coarse (marched) surface and the driver's unresolved variances.
     MsFootprint footprint;
     footprint.marchedCov = vec3(ms_coarseSlopeVariance, 0.0, ms_coarseSlopeVariance);
@@ -425,7 +407,7 @@ void main() {
     float footprintSlopeVariance = ms_slopeVariance;
 #if MS_SHADING_SAMPLES > 1
     // Where the relief stands out of the pixel it is geometry already: the samples close up on the centre.
-    vec2 sub = mix(1.0 / vec2(MS_GRID_X, MS_GRID_Y), vec2(1.0), ms_reliefGate);  // the sub-box, in pixel axes
+    vec2 sub = mix(1.0 / vec2(MS_GRID_X, MS_GRID_Y), vec2(1.0), gate);  // the sub-box, in pixel axes
     // The plane the samples are placed on (ms_subpixelPoint) carries the coarse surface's tilt over the
     // region they can reach, twice the pixel (a sample may lie up to twice its offset from q), not the tilt
     // at q: q is a visible point, so the slope there of octaves about a pixel across leans towards the eye,
@@ -445,8 +427,7 @@ void main() {
     MsSurface unresolved = MsSurface(0.0, vec2(0.0), ms_heightVariance, vec3(ms_slopeVariance, 0.0, ms_slopeVariance),
                                      0.0, vec4(0.0, 0.0, 1.0, 1.0));
     MsMasking m = ms_masking(wo, unresolved, footprint);
-    MsLight lights[SH_MAX_LIGHTS];  // each light's share under m, computed when first needed
-    for (int j = 0; j < SH_MAX_LIGHTS; ++j) lights[j].visibility = -1.0;
+    MsLight lights[SH_MAX_LIGHTS];  // each light's share under m, the same for every sample
 #endif
     // how far below the macro horizon a light can still reach the marched point (0 on a plane; below)
 #ifdef MS_SPHERE
@@ -454,11 +435,36 @@ void main() {
 #else
     float horizonDip = 0.0;
 #endif
+#ifndef MS_IRRADIANCE
+    // The coarse surface's shadows: one profile per light above the horizon, traced from q before the samples
+    // (traced inside their loop when first needed, its set-up ran for every sample: llvmpipe runs both sides
+    // of a branch).
+    vec4 shadows[SH_MAX_LIGHTS];
+#if MS_SHADING_SAMPLES > 1
+    ms_setWeights(dpdx, dpdy, false);  // the marched surface casts them
+#endif
+    float qHeight = ms_surfaceHeight(p);  // the marched surface's height at q (q is off it by the march's tolerance)
+    for (int j = 0; j < SH_MAX_LIGHTS; ++j) {
+        shadows[j] = vec4(1e30, 0.0, 0.0, 0.0);
+        if (j >= sh_lightCount) break;
+        vec3 l = normalize(mat3(u_objectFromWorld) * sh_lightDirection[j]);
+        vec3 wi = l * frame;
+#ifndef MS_TRANSFER
+        lights[j] = ms_light(m, wi);
+#endif
+        if (wi.z > -horizonDip) {
+            shadows[j] = ms_shadowProfile(q, l, MS_SHADOW_STEPS, shadowReach, spacing / max(length(wi.xy), 0.1));
+        }
+    }
+#if MS_SHADING_SAMPLES > 1
+    ms_setWeights(sub.x * gridX, sub.y * gridY, false);
+#endif
+#endif
     vec3 radiance = vec3(0.0);
     vec3 plainSum = vec3(0.0);
     float areaSum = 0.0;
 #if MS_SHADING_SAMPLES > 1
-    int sampleCount = ms_reliefGate < 1.0 ? MS_SHADING_SAMPLES : 1;  // all at the centre: shade it once
+    int sampleCount = gate < 1.0 ? MS_SHADING_SAMPLES : 1;  // all at the centre: shade it once
 #else
     int sampleCount = 1;
 #endif
@@ -467,7 +473,7 @@ void main() {
         vec3 sampleRadiance = vec3(0.0);
 #if MS_SHADING_SAMPLES > 1
         vec2 offset = (vec2(k % MS_GRID_X, k / MS_GRID_X) + 0.5 - 0.5 * vec2(MS_GRID_X, MS_GRID_Y))
-                    * (1.0 - ms_reliefGate) / vec2(MS_GRID_X, MS_GRID_Y);
+                    * (1.0 - gate) / vec2(MS_GRID_X, MS_GRID_Y);
         vec3 pk = ms_subpixelPoint(p0 + offset.x * gridXMacro + offset.y * gridYMacro, d, q, placementNormal,
                                    offset.x * gridX + offset.y * gridY);
         MsSurface s = ms_surfaceAt(ms_project(pk), frame);
@@ -520,17 +526,6 @@ void main() {
             // marched point's altitude h at slope -μ dives μ²R/2 and meets the coarse relief (|h| < b)
             // unless μ < sqrt(2(h + b)/R).
             if (wi.z <= -horizonDip) continue;
-            if (shadows[j].x == -1e30) {  // first: near and below the horizon most pixels are in shadow
-                float skip = spacing / max(length(wi.xy), 0.1);
-#if MS_SHADING_SAMPLES > 1
-                ms_setWeights(dpdx, dpdy, false);  // the marched surface casts them
-#endif
-                qHeight = ms_surfaceHeight(p);
-                shadows[j] = ms_shadowProfile(q, l, MS_SHADOW_STEPS, shadowReach, skip);
-#if MS_SHADING_SAMPLES > 1
-                ms_setWeights(sub.x * gridX, sub.y * gridY, false);
-#endif
-            }
 #if MS_SHADING_SAMPLES > 1
             vec3 offsetK = pk - q;
 #else
@@ -550,7 +545,6 @@ void main() {
 #ifdef MS_TRANSFER
             MsLight light = ms_light(m, wi);
 #else
-            if (lights[j].visibility < 0.0) lights[j] = ms_light(m, wi);
             MsLight light = lights[j];
 #endif
 #ifdef MS_HEIGHT_MAP
@@ -581,6 +575,64 @@ void main() {
     }
     // (every sample facing away from the eye: a near miss of the march; their plain mean)
     radiance = areaSum > 0.0 ? radiance / areaSum : plainSum / float(sampleCount);
+#endif
+    return radiance;
+}
+
+void main() {
+    vec3 p0 = v_solid;
+    vec3 dpdxMacro = dFdx(p0);
+    vec3 dpdyMacro = dFdy(p0);
+    vec3 dpdx = dpdxMacro;
+    vec3 dpdy = dpdyMacro;
+    vec3 d = u_eyeObject.w > 0.5 ? normalize(p0 - u_eyeObject.xyz) : normalize(u_eyeObject.xyz);
+#if defined(MODE_POINT) || defined(MODE_MARCH_STEPS)
+    ms_setWeights(dpdx, dpdy, true);
+#else
+    ms_reliefFootprint(p0, d, dpdx, dpdy);
+    ms_setWeights(dpdx, dpdy, false);
+#endif
+    vec3 o = u_eyeObject.w > 0.5 ? u_eyeObject.xyz : p0 - d * (4.0 * (ms_radius + ms_heightBound) + 1.0);
+    vec3 slab = ms_slab(o, d, ms_heightBound);
+    if (slab.y < slab.x) discard;
+#ifdef MODE_SURFACE_FILTER
+    // Where the relief stands out of the pixel (ms_reliefGate >= 1/2), MS_RELIEF_RAYS sub-rays spread over the
+    // pixel's extent along the macro normal are marched as one column (ms_marchColumn) and shaded each, with
+    // the shading samples closed up; their radiances are averaged. Elsewhere the column is the centre ray.
+    vec3 up = ms_macroNormal(p0);
+    vec3 upAcross = up - dot(up, d) * d;  // what an offset along up moves the ray across itself
+    float across = max(dot(upAcross, upAcross), 1e-6);
+    bool perspective = u_eyeObject.w > 0.5;
+    vec3 ex = dpdxMacro - dot(dpdxMacro, d) * d, ey = dpdyMacro - dot(dpdyMacro, d) * d;
+    // the pixel's extent across the ray along upAcross, in offsets along up: of the direction (perspective,
+    // per unit distance) or of the origin (orthographic)
+    float extent = (abs(dot(ex, upAcross)) + abs(dot(ey, upAcross))) / across;
+    if (perspective) extent /= length(p0 - o);
+    int rays = ms_reliefGate >= 0.5 ? MS_RELIEF_RAYS : 1;
+    vec2 offsets[MS_RELIEF_RAYS];  // (origin, direction) offsets along up, ascending
+    for (int k = 0; k < MS_RELIEF_RAYS; ++k) {
+        float f = extent * ((float(k) + 0.5) / float(rays) - 0.5);
+        offsets[k] = k < rays ? (perspective ? vec2(0.0, f) : vec2(f, 0.0)) : vec2(0.0);
+    }
+    float hits[MS_RELIEF_RAYS];
+    ms_marchColumn(o, d, up, offsets, rays, MS_MAX_STEPS, hits);
+    float gate = rays > 1 ? 1.0 : ms_reliefGate;
+    vec3 radiance = vec3(0.0);
+    float shown = 0.0;
+    for (int k = 0; k < MS_RELIEF_RAYS; ++k) {
+        if (k >= rays) break;
+        if (hits[k] < 0.0) continue;  // a sub-ray past the silhouette
+        vec3 dk = d + offsets[k].y * up;
+        float len = length(dk);
+        radiance += ms_shade(o + offsets[k].x * up, dk / len, hits[k] * len, p0, dpdxMacro, dpdyMacro, dpdx, dpdy, gate);
+        shown += 1.0;
+    }
+    if (shown == 0.0) discard;
+    radiance /= shown;
+#else
+    float t = ms_march(o, d, slab, MS_MAX_STEPS, true);
+    if (t < 0.0) discard;
+    vec3 radiance = ms_shade(o, d, t, p0, dpdxMacro, dpdyMacro, dpdx, dpdy, ms_reliefGate);
 #endif
 #ifdef MODE_MARCH_STEPS
     radiance = vec3(float(ms_steps) / 256.0, 0.0, 0.0);  // steps of the primary and shadow rays, /256
