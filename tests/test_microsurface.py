@@ -147,14 +147,28 @@ def _first_hit_brute_force(o: np.ndarray, d: np.ndarray, t_max: float, n: int = 
     return float(t[below[0]]) if len(below) else -1.0
 
 
-@pytest.mark.parametrize("elevation", [60.0, 25.0, 8.0, 3.0])
-def test_march_finds_the_first_hit(elevation):
-    """The marcher's hit equals a dense scan's first crossing (no tunnelling through peaks)."""
-    n = 64
+def _descending_rays(elevation: float, n: int = 64) -> tuple[np.ndarray, np.ndarray]:
+    """n rays from 0.5 above the plane (|x|, |z| < 2) descending at `elevation` degrees, random azimuths."""
     azimuth = RNG.uniform(0, 2 * np.pi, n)
     e = np.radians(elevation)
     d = np.stack([np.cos(e) * np.cos(azimuth), -np.full(n, np.sin(e)), np.cos(e) * np.sin(azimuth)], 1)
     o = np.stack([RNG.uniform(-2, 2, n), np.full(n, 0.5), RNG.uniform(-2, 2, n)], 1)
+    return o, d
+
+
+def _assert_first_hits(got: np.ndarray, o: np.ndarray, d: np.ndarray) -> None:
+    """got (t per unit of d) is a dense scan's first crossing along each ray, but for at most 1 in 64."""
+    t_max = (0.5 + FRACTAL.height_bound()) / -d[:, 1]  # to the slab's floor
+    expected = np.array([_first_hit_brute_force(o[i], d[i], t_max[i]) for i in range(len(o))])
+    assert (expected > 0).all()
+    misses = np.abs(got - expected) > 2 * t_max / 40_000 + 1e-4
+    assert misses.mean() <= 1 / 64, (got[misses], expected[misses])
+
+
+@pytest.mark.parametrize("elevation", [60.0, 25.0, 8.0, 3.0])
+def test_march_finds_the_first_hit(elevation):
+    """The marcher's hit equals a dense scan's first crossing (no tunnelling through peaks)."""
+    o, d = _descending_rays(elevation)
     got = glsl_eval(
         "marchTest(o, d)",
         {"o": o, "d": d},
@@ -163,13 +177,7 @@ def test_march_finds_the_first_hit(elevation):
         prelude="float marchTest(vec3 o, vec3 d) { ms_setWeights(vec3(0.0), vec3(0.0), true);"
         " vec3 s = ms_slab(o, d, ms_heightBound); return ms_march(o, d, s, 512, false); }",
     )
-    bound = FRACTAL.height_bound()
-    t_max = (0.5 + bound) / np.sin(e)
-    expected = np.array([_first_hit_brute_force(o[i], d[i], t_max) for i in range(n)])
-    assert (expected > 0).all()
-    step = t_max / 40_000
-    misses = np.abs(got - expected) > 2 * step + 1e-4
-    assert misses.mean() <= 1 / 64, (got[misses], expected[misses])
+    _assert_first_hits(got, o, d)
 
 
 @pytest.mark.parametrize("elevation", [25.0, 8.0, 3.0])
@@ -178,11 +186,8 @@ def test_column_march_finds_every_sub_rays_first_hit(elevation):
     and starting each from the interval where the one below it crossed. Each sub-ray's hit equals a dense
     scan's first crossing along that sub-ray alone (the offsets span 0.02 rad, a pixel at about 5 px of
     a 256 px, 40° view, so sub-rays meet different ridges often at low elevations)."""
-    n, offsets = 64, (-0.01, -0.003, 0.004, 0.01)
-    azimuth = RNG.uniform(0, 2 * np.pi, n)
-    e = np.radians(elevation)
-    d = np.stack([np.cos(e) * np.cos(azimuth), -np.full(n, np.sin(e)), np.cos(e) * np.sin(azimuth)], 1)
-    o = np.stack([RNG.uniform(-2, 2, n), np.full(n, 0.5), RNG.uniform(-2, 2, n)], 1)
+    offsets = (-0.01, -0.003, 0.004, 0.01)
+    o, d = _descending_rays(elevation)
     got = glsl_eval(
         "columnTest(o, d)",
         {"o": o, "d": d},
@@ -195,15 +200,8 @@ def test_column_march_finds_every_sub_rays_first_hit(elevation):
         " float hits[4]; ms_marchColumn(o, d, vec3(0.0, 1.0, 0.0), offsets, 4, 768, hits);"
         " return vec4(hits[0], hits[1], hits[2], hits[3]); }",
     )
-    bound = FRACTAL.height_bound()
-    for k, b in enumerate(offsets):
-        dk = d + b * np.array([0.0, 1.0, 0.0])  # the sub-ray's parametrisation: t per unit of d + b up
-        t_max = (0.5 + bound) / -dk[:, 1]
-        expected = np.array([_first_hit_brute_force(o[i], dk[i], t_max[i]) for i in range(n)])
-        assert (expected > 0).all()
-        step = t_max / 40_000
-        misses = np.abs(got[:, k] - expected) > 2 * step + 1e-4
-        assert misses.mean() <= 1 / 64, (k, got[misses, k], expected[misses])
+    for k, b in enumerate(offsets):  # each sub-ray in its own parametrisation, t per unit of d + b up
+        _assert_first_hits(got[:, k], o, d + b * np.array([0.0, 1.0, 0.0]))
     # sub-rays above one another land at different places (the test would pass on one ray repeated)
     assert np.mean(np.abs(got[:, 3] - got[:, 0]) > 0.05 * got[:, 0]) > 0.1
 
