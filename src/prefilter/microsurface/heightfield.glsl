@@ -354,7 +354,7 @@ float ms_march(vec3 o, vec3 d, vec3 slab, int maxSteps, bool primary) {
         } else {
             te = a + (b - a) * ga / max(ga - gb, 1e-12);
         }
-        ms_steps += 1;
+        ms_steps += phase == 0 ? 1 : 0;  // march steps, as the diagnostic counts them (not the refinement)
         float g = ms_gapBound(o + te * d);
         if (phase == 0) {
             if (g <= 0.0) {
@@ -437,7 +437,7 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 offsets[MS_RELIEF_RAYS], int c
         } else if (phase == 1) {
             te = a + (b - a) * ga / max(ga - gb, 1e-12);
         }
-        ms_steps += 1;
+        ms_steps += phase == 0 ? 1 : 0;
         float g = ms_gapBound(oj + te * dj);  // exact where <= 0
         if (phase == 0) {
             tPrev = t;
