@@ -380,9 +380,9 @@ float ms_march(vec3 o, vec3 d, vec3 slab, int maxSteps, bool primary) {
 // same t as the centre ray, only higher or lower by a_k + t b_k. So sub-ray k+1 meets the relief no sooner
 // than sub-ray k, and the column is marched as one ray: each step evaluates the gap of the lowest sub-ray
 // still above the relief; when it crosses, its hit is refined (secant) and the next one starts in the same
-// interval, where its gap is the last one's plus the difference in altitude. The relief is evaluated once
-// per step whatever the number of sub-rays, and every step evaluates it once: llvmpipe runs both sides of
-// a branch, so a refinement or a start inside the step loop would cost every step. On a plane (up = its
+// interval, where its gap is the last one's plus the difference in altitude. A march step serves every
+// sub-ray above the lowest, and each iteration (a march step, a secant step or a start) evaluates the relief
+// once, as ms_march does: llvmpipe runs both sides of a branch. On a plane (up = its
 // normal) the shared points are exact; on a sphere up is the normal at the pixel centre, and the sub-rays'
 // points drift apart by the normal's turn over t b_k, which each one's own evaluations take in.
 // hits[k]: sub-ray k's t (in its own parametrisation, |d + b_k up| per unit), or -1 where it misses; as
