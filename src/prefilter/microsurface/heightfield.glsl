@@ -329,6 +329,15 @@ float ms_marchStep(vec3 x, vec3 dir, float gap, float minStep) {
     return max(MS_RELAX * gap / max(rate, 1e-6), minStep);
 }
 
+// A crossing bracketed by (a, gap a > 0, b, gap b <= 0): its secant estimate, and the bracket narrowed by
+// the gap g found at t.
+float ms_secant(vec4 bracket) {
+    return bracket.x + (bracket.z - bracket.x) * bracket.y / max(bracket.y - bracket.w, 1e-12);
+}
+vec4 ms_narrow(vec4 bracket, float t, float g) {
+    return g > 0.0 ? vec4(t, g, bracket.zw) : vec4(bracket.xy, t, g);
+}
+
 // First t in [t0, t1] = slab.xy where the ray o + t d (|d| = 1) meets the surface, or -1. Steps are the gap over
 // the largest rate at which the gap can shrink, |d·n| + slopeBound |d_tangent|; a crossing is refined by
 // five secant steps. After maxSteps without a crossing a primary ray returns its current t (just above
@@ -343,33 +352,28 @@ float ms_march(vec3 o, vec3 d, vec3 slab, int maxSteps, bool primary) {
     float t = slab.x;
     float gap = ms_gapBound(o + t * d);
     if (gap <= 0.0) return t;
-    int phase = 0;
+    int phase = 0;  // 0: march, 1: refine the crossing in `bracket`
     int refined = 0;
-    float a = t, ga = gap, b = t, gb = gap;
+    vec4 bracket = vec4(0.0);
     for (int i = 0; i < maxSteps + 5; ++i) {
-        if (phase == 1 && refined >= 5) return b;
-        float te;
-        if (phase == 0) {
-            te = min(t + ms_marchStep(o + t * d, d, gap, minStep), t1);
-        } else {
-            te = a + (b - a) * ga / max(ga - gb, 1e-12);
-        }
+        if (phase == 1 && refined >= 5) return bracket.z;
+        float te = phase == 0 ? min(t + ms_marchStep(o + t * d, d, gap, minStep), t1) : ms_secant(bracket);
         ms_steps += phase == 0 ? 1 : 0;  // march steps, as the diagnostic counts them (not the refinement)
         float g = ms_gapBound(o + te * d);
-        if (phase == 0) {
-            if (g <= 0.0) {
-                phase = 1; a = t; ga = gap; b = te; gb = g;
-            } else if (te >= t1) {
-                return primary && slab.z > 0.5 ? t1 : -1.0;
-            }
+        if (phase == 1) {
+            bracket = ms_narrow(bracket, te, g);
+            refined += 1;
+        } else if (g <= 0.0) {
+            phase = 1;
+            bracket = vec4(t, gap, te, g);
+        } else if (te >= t1) {
+            return primary && slab.z > 0.5 ? t1 : -1.0;
+        } else {
             t = te;
             gap = g;
-        } else {
-            if (g > 0.0) { a = te; ga = g; } else { b = te; gb = g; }
-            refined += 1;
         }
     }
-    return phase == 1 ? b : (primary ? t : -1.0);
+    return phase == 1 ? bracket.z : (primary ? t : -1.0);
 }
 
 // --- A column of sub-pixel rays (beyond the paper; surface-filter) ------------------------------------
@@ -406,74 +410,60 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 offsets[MS_RELIEF_RAYS], int c
     }
     if (entry < 0.0) return;  // the lowest sub-ray misses the slab: so do the others
     float minStep = 2e-4 * max(ms_heightBound, 1e-6);
-    // phase 0: march sub-ray j; 1: refine its crossing in [a, b]; 2: start sub-ray j at t, the end of the
-    // interval [tPrev, t] in which sub-ray j - 1 crossed or left the slab
+    // phase 0: march sub-ray j; 1: refine its crossing in `bracket`; 2: start sub-ray j at t, the end of
+    // the interval [tPrev, t] in which sub-ray j - 1 crossed or left the slab; 3: sub-ray j is done
     int j = 0;
     int phase = 0;
     int refined = 0;
     float t = entry;
     float gap = ms_gapBound(o + offsets[0].x * up + t * (d + offsets[0].y * up));
     float tPrev = t, gapPrev = gap;
-    float a = t, ga = gap, b = t, gb = gap;
+    vec4 bracket = vec4(t, gap, t, gap);
     if (gap <= 0.0) {  // starts inside: the hit is the entry itself
         phase = 1;
         refined = 5;
     }
     for (int i = 0; i < maxSteps; ++i) {
-        if (phase == 1 && refined >= (j == 0 ? 5 : 2)) {  // refined: the next sub-ray starts in the same interval
-            hits[j] = b;
-            j += 1;
-            if (j < count) {
-                gapPrev += (offsets[j].x - offsets[j - 1].x) + tPrev * (offsets[j].y - offsets[j - 1].y);
-                phase = 2;
-            }
+        if (phase == 1 && refined >= (j == 0 ? 5 : 2)) {
+            hits[j] = bracket.z;
+            phase = 3;
         }
-        if (j >= count) break;
+        if (phase == 3) {  // the next sub-ray starts in the same interval
+            j += 1;
+            if (j >= count) break;
+            gapPrev += (offsets[j].x - offsets[j - 1].x) + tPrev * (offsets[j].y - offsets[j - 1].y);
+            phase = 2;
+        }
         vec3 oj = o + offsets[j].x * up;
         vec3 dj = d + offsets[j].y * up;
-        float te = t;  // phase 2
-        if (phase == 0) {
-            te = min(t + ms_marchStep(oj + t * dj, dj, gap, minStep / length(dj)), exits[j]);
-        } else if (phase == 1) {
-            te = a + (b - a) * ga / max(ga - gb, 1e-12);
-        }
+        float te = phase == 0 ? min(t + ms_marchStep(oj + t * dj, dj, gap, minStep / length(dj)), exits[j])
+                              : (phase == 1 ? ms_secant(bracket) : t);
         ms_steps += phase == 0 ? 1 : 0;
         float g = ms_gapBound(oj + te * dj);  // exact where <= 0
-        if (phase == 0) {
-            tPrev = t;
-            gapPrev = gap;
-            t = te;
-            gap = g;
-            if (g <= 0.0) {
+        if (phase == 1) {
+            bracket = ms_narrow(bracket, te, g);
+            refined += 1;
+        } else {
+            if (phase == 0) {
+                tPrev = t;
+                gapPrev = gap;
+                t = te;
+            }
+            if (g <= 0.0) {  // crossed in [tPrev, t] (phase 2: down within that interval already)
                 phase = 1;
                 refined = 0;
-                a = tPrev; ga = gapPrev; b = t; gb = g;
-            } else if (t >= exits[j]) {  // left the slab: float error at a thin slab's floor, or a miss
+                bracket = vec4(tPrev, gapPrev, t, g);
+            } else if (phase == 0 && t >= exits[j]) {  // left the slab: float error at a thin slab's floor, or a miss
                 hits[j] = floors[j] ? t : -1.0;
-                j += 1;
-                if (j < count) {
-                    gapPrev += (offsets[j].x - offsets[j - 1].x) + tPrev * (offsets[j].y - offsets[j - 1].y);
-                    phase = 2;
-                }
-            }
-        } else if (phase == 1) {
-            if (g > 0.0) {
-                a = te; ga = g;
+                phase = 3;
             } else {
-                b = te; gb = g;
+                phase = 0;
+                gap = g;
             }
-            refined += 1;
-        } else if (g <= 0.0) {  // phase 2: down within the interval already
-            phase = 1;
-            refined = 0;
-            a = tPrev; ga = gapPrev; b = t; gb = g;
-        } else {
-            phase = 0;
-            gap = g;
         }
     }
-    for (int k = 0; k < MS_RELIEF_RAYS; ++k) {
-        if (k >= j && k < count) hits[k] = phase == 1 ? b : t;  // out of steps: a near miss rather than a hole
+    for (int k = 0; k < MS_RELIEF_RAYS; ++k) {  // out of steps: a near miss rather than a hole
+        if (k >= j && k < count && !(k == j && phase == 3)) hits[k] = phase == 1 ? bracket.z : t;
     }
 }
 

@@ -601,12 +601,12 @@ void main() {
     // the shading samples closed up; their radiances are averaged. Elsewhere the column is the centre ray.
     vec3 up = ms_macroNormal(p0);
     vec3 upAcross = up - dot(up, d) * d;  // what an offset along up moves the ray across itself
-    float across = max(dot(upAcross, upAcross), 1e-6);
+    float across2 = max(dot(upAcross, upAcross), 1e-6);
     bool perspective = u_eyeObject.w > 0.5;
     vec3 ex = dpdxMacro - dot(dpdxMacro, d) * d, ey = dpdyMacro - dot(dpdyMacro, d) * d;
     // the pixel's extent across the ray along upAcross, in offsets along up: of the direction (perspective,
     // per unit distance) or of the origin (orthographic)
-    float extent = (abs(dot(ex, upAcross)) + abs(dot(ey, upAcross))) / across;
+    float extent = (abs(dot(ex, upAcross)) + abs(dot(ey, upAcross))) / across2;
     if (perspective) extent /= length(p0 - o);
     int rays = ms_reliefGate >= 0.5 ? MS_RELIEF_RAYS : 1;
     vec2 offsets[MS_RELIEF_RAYS];  // (origin, direction) offsets along up, ascending
