@@ -38,7 +38,7 @@ void main() {
     mat3 tangentFromWorld = transpose(mat3(across, along, n));
     vec3 wo = tangentFromWorld * normalize(v_toEye);
     vec3 colour = vec3(0.0);
-    for (int i = 0; i < SH_MAX_LIGHTS; ++i) {
+    for (int i = 0; i < SH_LIGHTS; ++i) {
         if (i >= sh_lightCount) break;
         vec3 wi = tangentFromWorld * sh_lightDirection[i];
 #if defined(MODE_POINT)

@@ -335,7 +335,7 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
 #ifndef MS_IRRADIANCE
     // Lambert at the (coarse) normal, a shadow ray to each light
     vec3 radiance = albedo.rgb * sh_ambient;
-    for (int j = 0; j < SH_MAX_LIGHTS; ++j) {
+    for (int j = 0; j < SH_LIGHTS; ++j) {
         if (j >= sh_lightCount) break;
         vec3 l = normalize(mat3(u_objectFromWorld) * sh_lightDirection[j]);
         float cosine = max(dot(normal, l), 0.0);
@@ -427,7 +427,7 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     MsSurface unresolved = MsSurface(0.0, vec2(0.0), ms_heightVariance, vec3(ms_slopeVariance, 0.0, ms_slopeVariance),
                                      0.0, vec4(0.0, 0.0, 1.0, 1.0));
     MsMasking m = ms_masking(wo, unresolved, footprint);
-    MsLight lights[SH_MAX_LIGHTS];  // each light's share under m, the same for every sample
+    MsLight lights[SH_LIGHTS];  // each light's share under m, the same for every sample
 #endif
     // how far below the macro horizon a light can still reach the marched point (0 on a plane; below)
 #ifdef MS_SPHERE
@@ -439,12 +439,12 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     // The coarse surface's shadows: one profile per light above the horizon, traced from q before the samples
     // (traced inside their loop when first needed, its set-up ran for every sample: llvmpipe runs both sides
     // of a branch).
-    vec4 shadows[SH_MAX_LIGHTS];
+    vec4 shadows[SH_LIGHTS];
 #if MS_SHADING_SAMPLES > 1
     ms_setWeights(dpdx, dpdy, false);  // the marched surface casts them
 #endif
     float qHeight = ms_surfaceHeight(p);  // the marched surface's height at q (q is off it by the march's tolerance)
-    for (int j = 0; j < SH_MAX_LIGHTS; ++j) {
+    for (int j = 0; j < SH_LIGHTS; ++j) {
         shadows[j] = vec4(1e30, 0.0, 0.0, 0.0);
         if (j >= sh_lightCount) break;
         vec3 l = normalize(mat3(u_objectFromWorld) * sh_lightDirection[j]);
@@ -516,7 +516,7 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
 #endif
 #else
         sampleRadiance += albedoView.rgb * sh_ambient;
-        for (int j = 0; j < SH_MAX_LIGHTS; ++j) {
+        for (int j = 0; j < SH_LIGHTS; ++j) {
             if (j >= sh_lightCount) break;
             vec3 l = normalize(mat3(u_objectFromWorld) * sh_lightDirection[j]);
             vec3 wi = l * frame;

@@ -36,30 +36,24 @@ uniform sampler2D nd_horizonSquare;  // @table ... and of their squares: the squ
 
 out vec4 o_colour;
 
-// Per-fragment lighting in the tangent frame, shared by every peak. ND_LIGHTS lights (the scene's count,
-// SH_LIGHT_COUNT, at least 1 so that arrays are legal), unrolled at compile time.
-#if defined(SH_LIGHT_COUNT) && SH_LIGHT_COUNT > 0
-#define ND_LIGHTS SH_LIGHT_COUNT
-#else
-#define ND_LIGHTS 1
-#endif
-vec3 g_light[ND_LIGHTS];
-vec3 g_half[ND_LIGHTS];
+// Per-fragment lighting in the tangent frame, shared by every peak, for SH_LIGHTS lights (shading.glsl).
+vec3 g_light[SH_LIGHTS];
+vec3 g_half[SH_LIGHTS];
 vec3 g_view;
-vec4 g_lightSlopes[ND_LIGHTS];  // nd_horizonSlopes of each light and of the view, for every peak's test
+vec4 g_lightSlopes[SH_LIGHTS];  // nd_horizonSlopes of each light and of the view, for every peak's test
 vec4 g_viewSlopes;
 
 // The shading is linear in the peaks (phong_peaks.glsl), so they are summed into scalars per light and
 // turned into a colour once: Σ a M (ambient), Σ a M V max(d·l, 0) and Σ a M V lobe(d·h) per light.
 float g_ambient;
-float g_diffuse[ND_LIGHTS];
-float g_specular[ND_LIGHTS];
+float g_diffuse[SH_LIGHTS];
+float g_specular[SH_LIGHTS];
 float g_peaks;
 
 void nd_clear() {
     g_ambient = 0.0;
     g_peaks = 0.0;
-    for (int i = 0; i < ND_LIGHTS; ++i) {
+    for (int i = 0; i < SH_LIGHTS; ++i) {
         g_diffuse[i] = 0.0;
         g_specular[i] = 0.0;
     }
@@ -73,7 +67,7 @@ void nd_addPeak(vec3 d, float a, float n, vec4 mean, vec4 deviation) {
     a *= nd_visibleSlopes(g_viewSlopes, low, inverseWidth);
 #endif
     g_ambient += a;
-    for (int i = 0; i < ND_LIGHTS; ++i) {
+    for (int i = 0; i < SH_LIGHTS; ++i) {
 #ifdef ND_SHADOWING
         float visible = a * nd_visibleSlopes(g_lightSlopes[i], low, inverseWidth);
 #else
@@ -87,7 +81,7 @@ void nd_addPeak(vec3 d, float a, float n, vec4 mean, vec4 deviation) {
 vec3 nd_colour() {
     float masked = g_view.z > 0.0 ? 1.0 : 0.0;  // the macro surface seen from below
     vec3 colour = u_albedo * sh_ambient * g_ambient;
-    for (int i = 0; i < ND_LIGHTS; ++i) {
+    for (int i = 0; i < SH_LIGHTS; ++i) {
         if (i >= sh_lightCount) break;
         float lit = g_light[i].z > 0.0 ? 1.0 : 0.0;
         colour += lit * sh_lightColour[i] *
@@ -155,7 +149,7 @@ void main() {
     vec3 b = (gl_FrontFacing ? 1.0 : -1.0) * v_tangent.w * cross(n, t);
     mat3 tangentFromWorld = transpose(mat3(t, b, n));
     g_view = tangentFromWorld * normalize(v_toEye);
-    for (int i = 0; i < ND_LIGHTS; ++i) {
+    for (int i = 0; i < SH_LIGHTS; ++i) {
         g_light[i] = tangentFromWorld * sh_lightDirection[i];
         g_half[i] = normalize(g_light[i] + g_view);
         g_lightSlopes[i] = nd_horizonSlopes(g_light[i]);
@@ -226,7 +220,7 @@ void main() {
                            crossMoment - m.x * m.y, moments.w - m.y * m.y + base);
     // the Lambertian part at the mean normal, the specular part from the Gaussian of slopes
     nd_addPeak(normalize(vec3(m, 1.0)), 1.0, 0.0, mean, deviation);
-    for (int i = 0; i < ND_LIGHTS; ++i) {
+    for (int i = 0; i < SH_LIGHTS; ++i) {
         float visible = 1.0;
 #ifdef ND_SHADOWING
         visible = nd_visibility(g_view, mean, deviation) * nd_visibility(g_light[i], mean, deviation);
