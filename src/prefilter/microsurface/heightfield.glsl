@@ -135,6 +135,32 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
 #endif
 }
 
+// What the marcher and the shadow rays read of a split (ms_setWeights): saved, a split is restored with
+// register moves instead of a second pass of ms_setWeights over every octave.
+struct MsSplit {
+    float weight[2 * MS_MAX_OCTAVES];
+    float heightBound;
+    float slopeBound;
+    float transferSigma;
+};
+
+MsSplit ms_saveSplit() {
+    float transferSigma = 0.0;
+#ifdef MS_TRANSFER
+    transferSigma = ms_transferSigma;
+#endif
+    return MsSplit(ms_weight, ms_heightBound, ms_slopeBound, transferSigma);
+}
+
+void ms_restoreSplit(MsSplit split) {
+    ms_weight = split.weight;
+    ms_heightBound = split.heightBound;
+    ms_slopeBound = split.slopeBound;
+#ifdef MS_TRANSFER
+    ms_transferSigma = split.transferSigma;
+#endif
+}
+
 // Σ_k w_k a_k n(f_k R p + o_k) over octaves [first, first + count).
 float ms_fractal(vec3 p, int first, int count) {
     vec3 lp = ms_latticeFromObject * p;
@@ -172,19 +198,24 @@ vec4 ms_fractalGrad(vec3 p, int first, int count) {
 
 // The slope (macro tangent frame) at p of the coarse surface that a footprint (dpdx, dpdy) keeps: the height
 // octaves weighted as ms_setWeights would weight them for that footprint (with a transfer function, times
-// E[g'] at the current split's σ_f), without changing the current split.
-vec2 ms_coarseSlope(vec3 p, mat3 frame, vec3 dpdx, vec3 dpdy) {
+// E[g'] at the current split's σ_f), without changing the current split. In `height`, from the same noise
+// evaluations, the current split's surface height at p (ms_surfaceHeight).
+vec2 ms_coarseSlope(vec3 p, mat3 frame, vec3 dpdx, vec3 dpdy, out float height) {
     vec3 lx = ms_latticeFromObject * dpdx;
     vec3 ly = ms_latticeFromObject * dpdy;
     vec3 lp = ms_latticeFromObject * p;
     vec4 fg = vec4(0.0);
+    height = 0.0;
     for (int k = 0; k < MS_MAX_OCTAVES; ++k) {
         if (k >= ms_heightOctaves) break;
         float f = ms_octave[k].y;
-        fg += ms_meanFraction(f * lx, f * ly) * ms_octaveGrad(lp, k);
+        vec4 octave = ms_octaveGrad(lp, k);
+        fg += ms_meanFraction(f * lx, f * ly) * octave;
+        height += ms_weight[k] * octave.w;
     }
 #ifdef MS_TRANSFER
     fg.xyz *= ms_transfer(fg.w, ms_transferSigma).z;  // ∇E[g(f)] = E[g'] ∇f
+    height = ms_transfer(height, ms_transferSigma).x;
 #endif
     return vec2(dot(fg.xyz, frame[0]), dot(fg.xyz, frame[1]));
 }

@@ -416,8 +416,13 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     // (256 px, 64-spp references, surface-filter FLIP, tilt at q -> over twice the pixel; time unchanged):
     // snake 0.0698 -> 0.0659, slope sphere 0.0767 -> 0.0730, height sphere 0.0499 -> 0.0514 (its samples'
     // heights followed q's facet better); the macro plane itself gave 0.0695, 0.0755 and 0.0569.
-    vec3 placementNormal = normalize(frame * vec3(-ms_coarseSlope(p, frame, 2.0 * dpdx, 2.0 * dpdy), 1.0));
+    float qHeight;  // the marched surface's height at q (q is off it by the march's tolerance)
+    vec2 placementSlope = ms_coarseSlope(p, frame, 2.0 * dpdx, 2.0 * dpdy, qHeight);
+    vec3 placementNormal = normalize(frame * vec3(-placementSlope, 1.0));
+    MsSplit marched = ms_saveSplit();
     ms_setWeights(sub.x * gridX, sub.y * gridY, false);
+#else
+    float qHeight = ms_surfaceHeight(p);
 #endif
     // What the 1/N footprint resolves beyond the whole one (0 with one sample): the samples show it.
     footprint.sampledHeightVariance = footprintHeightVariance - ms_heightVariance;
@@ -441,9 +446,9 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     // of a branch).
     vec4 shadows[SH_LIGHTS];
 #if MS_SHADING_SAMPLES > 1
-    ms_setWeights(dpdx, dpdy, false);  // the marched surface casts them
+    MsSplit sampled = ms_saveSplit();
+    ms_restoreSplit(marched);  // the marched surface casts them
 #endif
-    float qHeight = ms_surfaceHeight(p);  // the marched surface's height at q (q is off it by the march's tolerance)
     for (int j = 0; j < SH_LIGHTS; ++j) {
         shadows[j] = vec4(1e30, 0.0, 0.0, 0.0);
         if (j >= sh_lightCount) break;
@@ -457,7 +462,7 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
         }
     }
 #if MS_SHADING_SAMPLES > 1
-    ms_setWeights(sub.x * gridX, sub.y * gridY, false);
+    ms_restoreSplit(sampled);
 #endif
 #endif
     vec3 radiance = vec3(0.0);
