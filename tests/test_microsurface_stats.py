@@ -527,8 +527,8 @@ vec4 visMeanCov(vec3 wo, vec2 mean, vec3 cov) {
 vec2 visCovArea(vec3 wo, vec2 mean, vec3 cov) {
     vec2 m;
     vec3 c;
-    ms_visibleSlopes(wo, mean, cov, m, c);
-    return vec2(c.z, ms_projectedArea(wo, mean, cov));
+    float area = ms_visibleSlopes(wo, mean, cov, m, c);
+    return vec2(c.z, area);
 }
 """
 VISIBLE = ("microsurface/visible_slopes.glsl",)

@@ -12,14 +12,16 @@
 // Sigma), cov = vec3(Sxx, Sxy, Syy).
 //
 // Functions
-//   vec2  ms_visibleSlopeMoments1D(float a)   (zbar, var_z) of (a - z)^+ phi(z); a < 0 through the Mills
-//         continued fraction of smith.glsl (no cancellation); a clamped to [-1e4, 1e4].
-//   void  ms_visibleSlopes(vec3 wo, vec2 mean, vec3 cov, out vec2 visMean, out vec3 visCov)
+//   vec3  ms_visibleSlopeMoments1D(float a)   (zbar, var_z, m0) of (a - z)^+ phi(z), m0 its mass
+//         a Phi(a) + phi(a); a < 0 through the Mills continued fraction of smith.glsl (no cancellation); a
+//         clamped to [-1e4, 1e4].
+//   float ms_visibleSlopes(vec3 wo, vec2 mean, vec3 cov, out vec2 visMean, out vec3 visCov)
 //         mean and covariance (packed like cov) of D_s; D_s = p_s (visMean = mean, visCov = cov) when
-//         sigma_u^2 <= 1e-30 (normal view, or no slope variance along o_xy).
-//   float ms_projectedArea(vec3 wo, vec2 mean, vec3 cov)   E[max(o_z - dot(s, o_xy), 0)], the projected
-//         area (integral of max(cos theta_o, 0) dA) per unit macro area: c Phi(a) + sigma_u phi(a),
-//         c = o_z - dot(o_xy, mean); max(c, 0) when sigma_u = 0.
+//         sigma_u^2 <= 1e-30 (normal view, or no slope variance along o_xy). Returns E[max(o_z - dot(s,
+//         o_xy), 0)], the projected area (integral of max(cos theta_o, 0) dA) per unit macro area, D_s's
+//         normalisation: sigma_u m0(a) = c Phi(a) + sigma_u phi(a), c = o_z - dot(o_xy, mean); max(c, 0)
+//         when sigma_u = 0. One evaluation of the normal functions serves both (the shading samples call
+//         it for every sample; a separate area function cost a second one).
 //   vec3  ms_slopeNode3(vec2 mean, vec3 cov, int k)   (node, weight) k = 3 i + j, k in 0..8, of the
 //         3x3 Gauss-Hermite cubature against N(mean, Sigma): node 3 i + j = mean + L (z_i, z_j), L the
 //         lower Cholesky factor of Sigma (semidefinite allowed), z in {-sqrt(3), 0, sqrt(3)}, weights
@@ -30,49 +32,37 @@
 
 #include "microsurface/smith.glsl"
 
-vec2 ms_visibleSlopeMoments1D(float a) {
+vec3 ms_visibleSlopeMoments1D(float a) {
     a = clamp(a, -1e4, 1e4);
+    float pdf = ms_normalPdf(a);
     if (a >= 0.0) {
         float cdf = ms_normalCdf(a);
-        float pdf = ms_normalPdf(a);
         float m0 = a * cdf + pdf;
         float zbar = -cdf / m0;
-        return vec2(zbar, (a * cdf + 2.0 * pdf) / m0 - zbar * zbar);
+        return vec3(zbar, (a * cdf + 2.0 * pdf) / m0 - zbar * zbar, m0);
     }
-    // t = a - z >= 0 has the density ∝ t exp(-x t - t^2 / 2), x = -a: mean 2 rho2, var 2 rho2 (3 rho3 - 2 rho2)
+    // t = a - z >= 0 has the density ∝ t exp(-x t - t^2 / 2), x = -a: mean 2 rho2, var 2 rho2 (3 rho3 - 2 rho2);
+    // m0 = phi(a) J_1(x) with J_1 = rho1 / (x + rho1) (J_1 = 1 - x J_0 and rho1 = J_1 / J_0)
     vec3 rho = ms_millsRho(-a);
-    return vec2(a - 2.0 * rho.y, 2.0 * rho.y * (3.0 * rho.z - 2.0 * rho.y));
+    return vec3(a - 2.0 * rho.y, 2.0 * rho.y * (3.0 * rho.z - 2.0 * rho.y), pdf * rho.x / (rho.x - a));
 }
 
-void ms_visibleSlopes(vec3 wo, vec2 mean, vec3 cov, out vec2 visMean, out vec3 visCov) {
+float ms_visibleSlopes(vec3 wo, vec2 mean, vec3 cov, out vec2 visMean, out vec3 visCov) {
     vec2 v = wo.xy;
     vec2 sv = vec2(cov.x * v.x + cov.y * v.y, cov.y * v.x + cov.z * v.y);  // Sigma o_xy
     float su2 = dot(v, sv);
     visMean = mean;
     visCov = cov;
-    if (!(su2 > 1e-30)) {
-        return;
-    }
-    float su = sqrt(su2);
-    vec2 m = ms_visibleSlopeMoments1D((wo.z - dot(v, mean)) / su);
-    visMean = mean + sv * (m.x / su);
-    float k = (1.0 - m.y) / su2;
-    visCov = cov - k * vec3(sv.x * sv.x, sv.x * sv.y, sv.y * sv.y);
-}
-
-float ms_projectedArea(vec3 wo, vec2 mean, vec3 cov) {
-    vec2 v = wo.xy;
     float c = wo.z - dot(v, mean);
-    float su2 = v.x * v.x * cov.x + 2.0 * v.x * v.y * cov.y + v.y * v.y * cov.z;
     if (!(su2 > 1e-30)) {
         return max(c, 0.0);
     }
     float su = sqrt(su2);
-    float a = clamp(c / su, -1e4, 1e4);
-    if (a >= 0.0) {
-        return c * ms_normalCdf(a) + su * ms_normalPdf(a);
-    }
-    return su * ms_normalPdf(a) * ms_normalLossScaled(-a);
+    vec3 m = ms_visibleSlopeMoments1D(c / su);
+    visMean = mean + sv * (m.x / su);
+    float k = (1.0 - m.y) / su2;
+    visCov = cov - k * vec3(sv.x * sv.x, sv.x * sv.y, sv.y * sv.y);
+    return su * m.z;
 }
 
 vec3 ms_slopeNode3(vec2 mean, vec3 cov, int k) {
