@@ -220,6 +220,16 @@ vec2 ms_coarseSlope(vec3 p, mat3 frame, vec3 dpdx, vec3 dpdy, out float height) 
     return vec2(dot(fg.xyz, frame[0]), dot(fg.xyz, frame[1]));
 }
 
+// The standard deviation of the coarse surface's slope along any tangent direction (the current split; with a
+// transfer function, times its bound on |dh/df|).
+float ms_coarseSlopeDeviation() {
+    float deviation = sqrt(ms_coarseSlopeVariance);
+#ifdef MS_TRANSFER
+    deviation *= u_transferBound.y;
+#endif
+    return deviation;
+}
+
 // --- the macro surface ----------------------------------------------------------------------------
 #ifdef MS_SPHERE
 vec3 ms_project(vec3 q) { return ms_radius * normalize(q); }
@@ -517,7 +527,7 @@ float ms_shadow(vec3 q, vec3 l, int maxSteps) {
 // the ray from q passes the point x its clearance is c(x), and the sample's is c(x) + Δh - ∇h(x)·δ to
 // first order in δ. The ray from q is marched as ms_march does but does not stop at an occluder: it goes
 // on through it, in steps of at least reach / 2, until its clearance falls below -reach (no sample can
-// pass then: reach bounds |∇h·δ| over the samples). Returns (least clearance c*, ∇h at its point x*) over
+// pass then: reach stands for the largest |∇h·δ| over the samples; the caller sets it). Returns (least clearance c*, ∇h at its point x*) over
 // the path beyond `skip` (nearer than the samples lie apart, the relief is each sample's own facet,
 // which its Lambert term sees), or (1e30, 0) if nothing comes within reach; a sample at (δ, Δh) is lit
 // when c* + Δh - ∇h(x*)·δ > 0. With reach = skip = 0 this is ms_shadow's answer.
