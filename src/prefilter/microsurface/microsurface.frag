@@ -56,7 +56,7 @@ const mat3 MS_ENV_FROM_WORLD = mat3(vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), ve
 #define MS_SHADOW_STEP 0.5
 #endif
 #define MS_PI 3.14159265
-// The reach of the shading samples' shadow profile in standard deviations of the coarse slope (main()).
+// The reach of the shading samples' shadow profile in standard deviations of the coarse slope (ms_shade).
 #define MS_REACH_DEVIATIONS 4.0
 
 in vec3 v_solid;  // object-space position on the macro surface
