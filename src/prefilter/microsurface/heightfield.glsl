@@ -6,7 +6,8 @@
 //   h(p) = Σ_k w_k a_k n(f_k R_lat p + o_k)   with w_k = 1 (point, reference) or β_k (coarse surface)
 //
 // Two fractals share the uniform arrays: octaves [0, 8) are the height field, [8, 16) the procedural
-// texture that drives C₀ and the height perturbation r. Per fragment, ms_setWeights() fills the global
+// texture that drives C₀ and the height perturbation r, present with the define MS_TEXTURE_FRACTAL (without
+// it r = 0 and its octaves are not visited: llvmpipe ran a masked pass of their loops). Per fragment, ms_setWeights() fills the global
 // ms_weight[] and the residual statistics (ms_heightVariance, ms_slopeVariance, ms_textureVariance), for
 // the footprint that ms_reliefFootprint() puts on the visible relief.
 // Macro surface: the xz-plane (y = 0, normal +y), or with MS_SPHERE a sphere of radius ms_radius.
@@ -17,6 +18,11 @@
 #include "procedural/noise_stats.glsl"
 
 #define MS_MAX_OCTAVES 8
+#ifdef MS_TEXTURE_FRACTAL
+#define MS_WEIGHT_SLOTS (2 * MS_MAX_OCTAVES)
+#else
+#define MS_WEIGHT_SLOTS MS_MAX_OCTAVES
+#endif
 #define MS_NOISE_BOUND 1.0
 // Slope bound per unit a_k f_k used to size march steps: |∇n| < 3.2 always, but over 2.5 in < 0.1 % of
 // points; an overshoot is caught (gap < 0) and refined, so the relaxed bound only risks clipping peaks
@@ -38,7 +44,7 @@ uniform int ms_textureOctaves;
 uniform mat3 ms_latticeFromObject;
 uniform float ms_radius;
 
-float ms_weight[2 * MS_MAX_OCTAVES];
+float ms_weight[MS_WEIGHT_SLOTS];
 float ms_heightVariance;   // σ_h² of the unresolved octaves
 float ms_slopeVariance;    // per tangent axis: Σ = ms_slopeVariance · I
 float ms_coarseHeightVariance;  // the same of the coarse (rendered) surface: Σ w² a² Var n
@@ -101,7 +107,7 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
     float curvatureMoment = 0.0;
     vec3 lx = ms_latticeFromObject * dpdx;
     vec3 ly = ms_latticeFromObject * dpdy;
-    for (int i = 0; i < 2 * MS_MAX_OCTAVES; ++i) {
+    for (int i = 0; i < MS_WEIGHT_SLOTS; ++i) {
         bool height = i < MS_MAX_OCTAVES;
         int k = height ? i : i - MS_MAX_OCTAVES;
         if (k >= (height ? ms_heightOctaves : ms_textureOctaves)) {
@@ -138,7 +144,7 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
 // What the marcher and the shadow rays read of a split (ms_setWeights): saved, a split is restored with
 // register moves instead of a second pass of ms_setWeights over every octave.
 struct MsSplit {
-    float weight[2 * MS_MAX_OCTAVES];
+    float weight[MS_WEIGHT_SLOTS];
     float heightBound;
     float slopeBound;
     float transferSigma;

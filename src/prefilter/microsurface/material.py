@@ -101,6 +101,8 @@ class MicrosurfaceMaterial:
 
     def defines(self, options) -> dict[str, object]:
         defines: dict[str, object] = {f"MS_{name.upper()}_MAP": True for name in self.maps}
+        if self.texture is not None:
+            defines["MS_TEXTURE_FRACTAL"] = True
         if self.macro == "sphere":
             defines["MS_SPHERE"] = True
         if self.height_moments == "log-fit":

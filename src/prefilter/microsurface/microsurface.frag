@@ -170,7 +170,11 @@ MsSurface ms_surfaceAt(vec3 p, mat3 frame) {
     s.h = hMean;
     s.slope = slopeMean;
 #endif
+#ifdef MS_TEXTURE_FRACTAL
     s.r = ms_fractal(p, MS_MAX_OCTAVES, ms_textureOctaves);
+#else
+    s.r = 0.0;
+#endif
     return s;
 }
 
