@@ -504,7 +504,6 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     int sampleCount = 1;
 #endif
     for (int k = 0; k < MS_SHADING_SAMPLES; ++k) {
-        if (k >= sampleCount) break;
         vec3 sampleRadiance = vec3(0.0);
 #if MS_SHADING_SAMPLES > 1
         vec2 offset = (vec2(k % MS_GRID_X, k / MS_GRID_X) + 0.5 - 0.5 * vec2(MS_GRID_X, MS_GRID_Y))
@@ -602,6 +601,7 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
         radiance += area * sampleRadiance;
         areaSum += area;
         plainSum += sampleRadiance;
+        if (k + 1 >= sampleCount) break;  // at the end of the body, as heightfield.glsl's octave loops
     }
     // (every sample facing away from the eye: a near miss of the march; their plain mean)
     radiance = areaSum > 0.0 ? radiance / areaSum : plainSum / float(sampleCount);
