@@ -650,12 +650,13 @@ void main() {
     vec3 radiance = vec3(0.0);
     float shown = 0.0;
     for (int k = 0; k < MS_RELIEF_RAYS; ++k) {
-        if (k >= rays) break;
-        if (hits[k] < 0.0) continue;  // a sub-ray past the silhouette
-        vec3 dk = d + offsets[k].y * up;
-        float len = length(dk);
-        radiance += ms_shade(o + offsets[k].x * up, dk / len, hits[k] * len, p0, dpdxMacro, dpdyMacro, dpdx, dpdy, gate);
-        shown += 1.0;
+        if (hits[k] >= 0.0) {  // else a sub-ray past the silhouette
+            vec3 dk = d + offsets[k].y * up;
+            float len = length(dk);
+            radiance += ms_shade(o + offsets[k].x * up, dk / len, hits[k] * len, p0, dpdxMacro, dpdyMacro, dpdx, dpdy, gate);
+            shown += 1.0;
+        }
+        if (k + 1 >= rays) break;  // at the end of the body, as heightfield.glsl's octave loops
     }
     if (shown == 0.0) discard;
     radiance /= shown;
