@@ -7,9 +7,10 @@
 //
 // Two fractals share the uniform arrays: octaves [0, 8) are the height field, [8, 16) the procedural
 // texture that drives C₀ and the height perturbation r, present with the define MS_TEXTURE_FRACTAL (without
-// it r = 0 and its octaves are not visited: llvmpipe ran a masked pass of their loops). Per fragment, ms_setWeights() fills the global
-// ms_weight[] and the residual statistics (ms_heightVariance, ms_slopeVariance, ms_textureVariance), for
-// the footprint that ms_reliefFootprint() puts on the visible relief.
+// it r = 0 and its octaves are not visited: llvmpipe ran a masked pass of their loops). Per fragment,
+// ms_setWeights() fills the global ms_weight[] and the residual statistics (ms_heightVariance,
+// ms_slopeVariance, ms_textureVariance), for the footprint that ms_reliefFootprint() puts on the visible
+// relief.
 // Macro surface: the xz-plane (y = 0, normal +y), or with MS_SPHERE a sphere of radius ms_radius.
 // Uniforms: ms_octave[i] = (a, f), ms_octaveOffset[i], ms_heightOctaves, ms_textureOctaves,
 // ms_latticeFromObject (mat3), ms_radius; with MS_TRANSFER the height is g(fractal) (microsurface/transfer).
@@ -19,8 +20,10 @@
 
 #define MS_MAX_OCTAVES 8
 // Loops over the octaves run to a count given per material (at least 1) and test it at the end of their
-// body: llvmpipe does not unroll them, and a test at the top ran one more body after the last octave,
-// masked (a noise evaluation per march step and per fractal: every marching mode 1-7 % slower).
+// body, as the marchers test their exits: llvmpipe does not unroll them, and a test at the top ran one more
+// body after the last octave, masked (a noise evaluation per march step and per fractal: every marching
+// mode 1-7 % slower).
+// The slots of ms_weight[]: the height octaves, and the texture's with MS_TEXTURE_FRACTAL.
 #ifdef MS_TEXTURE_FRACTAL
 #define MS_WEIGHT_SLOTS (2 * MS_MAX_OCTAVES)
 #else
@@ -406,13 +409,13 @@ float ms_march(vec3 o, vec3 d, vec3 slab, int maxSteps, bool primary) {
     int refined = 0;
     vec4 bracket = vec4(0.0);
     for (int i = 0; i < maxSteps + 5; ++i) {
-        if (phase == 1 && refined >= 5) return bracket.z;
         float te = phase == 0 ? min(t + ms_marchStep(o + t * d, d, gap, minStep), t1) : ms_secant(bracket);
         ms_steps += phase == 0 ? 1 : 0;  // march steps, as the diagnostic counts them (not the refinement)
         float g = ms_gapBound(o + te * d);
         if (phase == 1) {
             bracket = ms_narrow(bracket, te, g);
             refined += 1;
+            if (refined >= 5) return bracket.z;  // here, not at the top of the next pass (MS_MAX_OCTAVES)
         } else if (g <= 0.0) {
             phase = 1;
             bracket = vec4(t, gap, te, g);
@@ -470,14 +473,10 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 offsets[MS_RELIEF_RAYS], int c
     float tPrev = t, gapPrev = gap;
     vec4 bracket = vec4(t, gap, t, gap);
     if (gap <= 0.0) {  // starts inside: the hit is the entry itself
-        phase = 1;
-        refined = 5;
+        hits[0] = t;
+        phase = 3;
     }
     for (int i = 0; i < maxSteps; ++i) {
-        if (phase == 1 && refined >= (j == 0 ? 5 : 2)) {
-            hits[j] = bracket.z;
-            phase = 3;
-        }
         if (phase == 3) {  // the next sub-ray starts in the same interval
             j += 1;
             if (j >= count) break;
@@ -493,6 +492,10 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 offsets[MS_RELIEF_RAYS], int c
         if (phase == 1) {
             bracket = ms_narrow(bracket, te, g);
             refined += 1;
+            if (refined >= (j == 0 ? 5 : 2)) {
+                hits[j] = bracket.z;
+                phase = 3;
+            }
         } else {
             if (phase == 0) {
                 tPrev = t;
@@ -511,6 +514,7 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 offsets[MS_RELIEF_RAYS], int c
                 gap = g;
             }
         }
+        if (phase == 3 && j + 1 >= count) break;  // at the end of the body (MS_MAX_OCTAVES)
     }
     for (int k = 0; k < MS_RELIEF_RAYS; ++k) {  // out of steps: a near miss rather than a hole
         if (k >= j && k < count && !(k == j && phase == 3)) hits[k] = phase == 1 ? bracket.z : t;
@@ -536,10 +540,11 @@ float ms_shadow(vec3 q, vec3 l, int maxSteps) {
 // the ray from q passes the point x its clearance is c(x), and the sample's is c(x) + Δh - ∇h(x)·δ to
 // first order in δ. The ray from q is marched as ms_march does but does not stop at an occluder: it goes
 // on through it, in steps of at least reach / 2, until its clearance falls below -reach (no sample can
-// pass then: reach stands for the largest |∇h·δ| over the samples; the caller sets it). Returns (least clearance c*, ∇h at its point x*) over
-// the path beyond `skip` (nearer than the samples lie apart, the relief is each sample's own facet,
-// which its Lambert term sees), or (1e30, 0) if nothing comes within reach; a sample at (δ, Δh) is lit
-// when c* + Δh - ∇h(x*)·δ > 0. With reach = skip = 0 this is ms_shadow's answer.
+// pass then: reach stands for the largest |∇h·δ| over the samples; the caller sets it). Returns (least
+// clearance c*, ∇h at its point x*) over the path beyond `skip` (nearer than the samples lie apart, the
+// relief is each sample's own facet, which its Lambert term sees), or (1e30, 0) if nothing comes within
+// reach; a sample at (δ, Δh) is lit when c* + Δh - ∇h(x*)·δ > 0. With reach = skip = 0 this is ms_shadow's
+// answer.
 vec4 ms_shadowProfile(vec3 q, vec3 l, int maxSteps, float reach, float skip) {
     vec4 none = vec4(1e30, 0.0, 0.0, 0.0);
     float eps = 2e-6 * (length(q) + 1.0);

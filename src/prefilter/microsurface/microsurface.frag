@@ -593,8 +593,9 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
         }
 #endif
         // the sample's share of the pixel: its facets' area projected towards the eye, E[(o_z - s·o_xy)⁺] over
-        // the sample's slopes N(s̄, Σ) (ms_visibleSlopes' normalisation). Only the coarse slope's (o_z - s̄·o_xy)⁺ gave no share
-        // to samples whose coarse facet turns away while their micro-facets still show, so at grazing views
+        // the sample's slopes N(s̄, Σ) (ms_visibleSlopes' normalisation). Only the coarse slope's
+        // (o_z - s̄·o_xy)⁺ gave no share to samples whose coarse facet turns away while their micro-facets
+        // still show, so at grazing views
         // the facets that face the eye, red on the snake, were over-weighted (its top rows +0.0044 red per
         // pixel; now +0.0031). Measured (256 px, 64-spp references, surface-filter FLIP before -> after, time
         // unchanged): height sphere 0.0509 -> 0.0499, slope sphere 0.0775 -> 0.0767, snake 0.0705 -> 0.0698.
