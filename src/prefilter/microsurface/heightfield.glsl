@@ -51,7 +51,11 @@ uniform mat3 ms_latticeFromObject;
 uniform float ms_radius;
 
 float ms_weight[MS_WEIGHT_SLOTS];
+// γ_k of the height octaves (0 for the texture's slots): the share of an octave's gradient whose variation
+// over the footprint is real (noise_stats.py); Σ γ_k ∇h_k is the height's linear part over the footprint
+float ms_linearWeight[MS_WEIGHT_SLOTS];
 float ms_heightVariance;   // σ_h² of the unresolved octaves
+float ms_heightResidual;   // what is left of it beyond the expected variance of their linear part
 float ms_slopeVariance;    // per tangent axis: Σ = ms_slopeVariance · I
 float ms_coarseHeightVariance;  // the same of the coarse (rendered) surface: Σ w² a² Var n
 float ms_coarseSlopeVariance;
@@ -102,6 +106,7 @@ float ms_meanFraction(vec3 jx, vec3 jy) {
 // full = true: every octave is real geometry (point mode and each reference pass).
 void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
     ms_heightVariance = 0.0;
+    ms_heightResidual = 0.0;
     ms_slopeVariance = 0.0;
     ms_coarseHeightVariance = 0.0;
     ms_coarseSlopeVariance = 0.0;
@@ -116,6 +121,7 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
     for (int i = 0; i < MS_WEIGHT_SLOTS; ++i) {
         bool height = i < MS_MAX_OCTAVES;
         int k = height ? i : i - MS_MAX_OCTAVES;
+        ms_linearWeight[i] = 0.0;
         if (k >= (height ? ms_heightOctaves : ms_textureOctaves)) {
             ms_weight[i] = 0.0;
             continue;
@@ -126,6 +132,13 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
         float residual = (1.0 - w * w) * af.x * af.x;
         if (height) {
             ms_heightVariance += residual * MS_NOISE_VARIANCE;
+            // the linear part's expected variance over a box footprint, γ² a² (ρ1² + ρ2²) Var(∂n) / 12, is
+            // taken out of the residual (and given back per point by ms_fractalGradLinear's gradient)
+            vec2 rho2 = af.y * af.y * vec2(dot(lx, lx), dot(ly, ly));
+            float gamma = full ? 0.0 : ns_linearFraction(rho2.x, rho2.y);
+            ms_linearWeight[i] = gamma;
+            float linear = gamma * gamma * af.x * af.x * MS_GRADIENT_VARIANCE * (rho2.x + rho2.y) / 12.0;
+            ms_heightResidual += max(residual * MS_NOISE_VARIANCE - linear, 0.0);
             ms_slopeVariance += residual * af.y * af.y * MS_GRADIENT_VARIANCE;
             ms_coarseHeightVariance += w * w * af.x * af.x * MS_NOISE_VARIANCE;
             ms_coarseSlopeVariance += w * w * af.x * af.x * af.y * af.y * MS_GRADIENT_VARIANCE;
@@ -194,18 +207,27 @@ vec4 ms_octaveGrad(vec3 lp, int i) {
     return vec4(a * ms_octave[i].y * (n.xyz * ms_latticeFromObject), a * n.w);
 }
 
-// (∇ in object space, value) of the same sum.
-vec4 ms_fractalGrad(vec3 p, int first, int count) {
+// (∇ in object space, value) of the same sum, and in `linear` Σ_k γ_k ∇(a_k n_k) (ms_linearWeight): the
+// gradient whose variation over the footprint of the last split is its linear part.
+vec4 ms_fractalGradLinear(vec3 p, int first, int count, out vec3 linear) {
     vec3 lp = ms_latticeFromObject * p;
     vec4 result = vec4(0.0);
+    linear = vec3(0.0);
     for (int k = 0; k < MS_MAX_OCTAVES; ++k) {
         int i = first + k;
         if (ms_weight[i] > 0.0) {
-            result += ms_weight[i] * ms_octaveGrad(lp, i);
+            vec4 octave = ms_octaveGrad(lp, i);
+            result += ms_weight[i] * octave;
+            linear += ms_linearWeight[i] * octave.xyz;
         }
         if (k + 1 >= count) break;  // at the end of the body (MS_MAX_OCTAVES)
     }
     return result;
+}
+
+vec4 ms_fractalGrad(vec3 p, int first, int count) {
+    vec3 linear;
+    return ms_fractalGradLinear(p, first, count, linear);
 }
 
 // The slope (macro tangent frame) at p of the coarse surface that a footprint (dpdx, dpdy) keeps: the height

@@ -131,6 +131,9 @@ class MicrosurfaceMaterial:
             textures[f"u_{name}Point"] = point.point
             textures[f"u_{name}Gaussian"] = pre.upload(ctx)
             owned.append(textures[f"u_{name}Gaussian"])
+            if name == "height":  # surface-filter reads it box-filtered too (ms_heightColour)
+                textures["u_heightGaussianBox"] = pre.upload_box(ctx)
+                owned.append(textures["u_heightGaussianBox"])
             uniforms[f"u_{name}Range"] = (*pre.mu_range, pre.sigma_max)
             uniforms[f"u_{name}Wrap"] = point.wrap_code
             uniforms[f"u_{name}Map"] = (cmap.scale, cmap.offset)

@@ -32,3 +32,11 @@ vec2 ns_meanFractions(float x1, float x2) {
     vec2 dy = ny + x.y * (d + b * sqrt(x.y) + c * x.y);
     return (nx * ny) / (dx * dy);
 }
+
+// gamma alone: ns_fall's third component for the same x1 = rho1^2, x2 = rho2^2 (capped like ns_fall).
+float ns_linearFraction(float x1, float x2) {
+    vec2 x = min(vec2(x1, x2), vec2(1e12));
+    vec2 n = 1.0 + NS_FALL_A.z * x;
+    vec2 d = n + x * (NS_FALL_D.z + NS_FALL_B.z * sqrt(x) + NS_FALL_C.z * x);
+    return (n.x * n.y) / (d.x * d.y);
+}

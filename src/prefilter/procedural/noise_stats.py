@@ -276,7 +276,8 @@ def glsl_source(stats: NoiseStats) -> str:
     return "\n".join(lines) + "\n" + _GLSL_FALL
 
 
-# The fits' evaluation: ns_fall for procedural/hart.glsl, ns_meanFractions for microsurface/heightfield.glsl.
+# The fits' evaluation: ns_fall for procedural/hart.glsl, ns_meanFractions and ns_linearFraction for
+# microsurface/heightfield.glsl.
 _GLSL_FALL = """
 // F(rho1) F(rho2) of (beta, kappa, gamma, 1 - lambda) for the squared axis lengths x1 = rho1^2,
 // x2 = rho2^2. x is capped where every F is 0 to float precision, so that neither product overflows.
@@ -298,6 +299,14 @@ vec2 ns_meanFractions(float x1, float x2) {
     vec2 dx = nx + x.x * (d + b * sqrt(x.x) + c * x.x);
     vec2 dy = ny + x.y * (d + b * sqrt(x.y) + c * x.y);
     return (nx * ny) / (dx * dy);
+}
+
+// gamma alone: ns_fall's third component for the same x1 = rho1^2, x2 = rho2^2 (capped like ns_fall).
+float ns_linearFraction(float x1, float x2) {
+    vec2 x = min(vec2(x1, x2), vec2(1e12));
+    vec2 n = 1.0 + NS_FALL_A.z * x;
+    vec2 d = n + x * (NS_FALL_D.z + NS_FALL_B.z * sqrt(x) + NS_FALL_C.z * x);
+    return (n.x * n.y) / (d.x * d.y);
 }
 """
 
