@@ -28,6 +28,23 @@ def _uniforms(fractal: Fractal = FRACTAL, radius: float = 1.0) -> dict:
     return MicrosurfaceMaterial(fractal, None, {}, radius=radius).octave_uniforms()
 
 
+def _eval_on_the_plane(body: str, target: str, n: int = 400) -> tuple[np.ndarray, np.ndarray]:
+    """n random points of the macro plane (|x|, |z| < 4) and the vec4 that `body` (GLSL statements over
+    vec3 p, ending in a return, with FRACTAL's uniforms) gives at each."""
+    p = np.zeros((n, 3))
+    p[:, 0], p[:, 2] = RNG.uniform(-4, 4, (2, n))
+    got = glsl_eval(
+        "planeTest(p)",
+        {"p": p},
+        4,
+        includes=INCLUDES,
+        target=target,
+        uniforms=_uniforms(),
+        prelude=f"vec4 planeTest(vec3 p) {{ {body} }}",
+    )
+    return p, got
+
+
 def test_noise_statistics_constants_match_fresh_monte_carlo():
     # plane sections through the tilted lattice, as the height field samples them
     p = np.zeros((400_000, 3))
@@ -111,19 +128,11 @@ def test_glsl_linear_part_matches_numpy(target):
     from prefilter.procedural.noise_stats import split_fit, split_fits
 
     dpdx, dpdy = np.array([0.09, 0.0, 0.03]), np.array([0.0, 0.0, 0.05])  # 0.2-2.1 cells of the octaves
-    p = np.zeros((300, 3))
-    p[:, 0], p[:, 2] = RNG.uniform(-4, 4, (2, 300))
-    got = glsl_eval(
-        "linearTest(p)",
-        {"p": p},
-        4,
-        includes=INCLUDES,
-        target=target,
-        uniforms=_uniforms(),
-        prelude="vec4 linearTest(vec3 p) {"
-        f" ms_setWeights(vec3({', '.join(map(str, dpdx))}), vec3({', '.join(map(str, dpdy))}), false);"
+    p, got = _eval_on_the_plane(
+        f"ms_setWeights(vec3({', '.join(map(str, dpdx))}), vec3({', '.join(map(str, dpdy))}), false);"
         " vec3 linear; ms_fractalGradLinear(p, 0, ms_heightOctaves, linear);"
-        " return vec4(linear, ms_heightResidual); }",
+        " return vec4(linear, ms_heightResidual);",
+        target,
     )
     f = FRACTAL.frequencies
     rho1 = f * np.linalg.norm(LATTICE_FROM_OBJECT @ dpdx)
@@ -202,17 +211,8 @@ def test_fractal_gradient_matches_finite_differences():
 
 @pytest.mark.parametrize("target", ["gl330", "es300"])
 def test_glsl_fractal_matches_numpy(target):
-    p = np.zeros((500, 3))
-    p[:, 0], p[:, 2] = RNG.uniform(-4, 4, (2, 500))
-    got = glsl_eval(
-        "fractalTest(p)",
-        {"p": p},
-        4,
-        includes=INCLUDES,
-        target=target,
-        uniforms=_uniforms(),
-        prelude="vec4 fractalTest(vec3 p) { ms_setWeights(vec3(0.0), vec3(0.0), true);"
-        " return ms_fractalGrad(p, 0, ms_heightOctaves); }",
+    p, got = _eval_on_the_plane(
+        "ms_setWeights(vec3(0.0), vec3(0.0), true); return ms_fractalGrad(p, 0, ms_heightOctaves);", target
     )
     np.testing.assert_allclose(got[:, 3], FRACTAL.value(p), atol=2e-5)
     np.testing.assert_allclose(got[:, :3], FRACTAL.gradient(p), atol=2e-4)
