@@ -189,3 +189,25 @@ def test_strip_writes_as_png(tmp_path):
     images.write_image(tmp_path / "strip.png", strip)
     back, _ = images.read_image(tmp_path / "strip.png")
     assert back.shape == (26, 26, 3)
+
+
+@pytest.mark.parametrize("shape,size", [((9, 15), (10, 6)), ((256, 256), (200, 200)), ((12, 8), (4, 6))])
+def test_box_downsample_is_the_area_mean(shape, size):
+    """Against the exact area mean: both grids refined to their least common multiple (each input pixel
+    repeated, each output pixel a block mean); the last case has integer factors, a plain block mean."""
+    import math
+
+    rng = np.random.default_rng(3)
+    image = rng.random((*shape, 3)).astype(np.float32)
+    (rows, cols), (w, h) = shape, size
+    ly, lx = math.lcm(rows, h), math.lcm(cols, w)
+    fine = np.repeat(np.repeat(image.astype(np.float64), ly // rows, 0), lx // cols, 1)
+    expected = fine.reshape(h, ly // h, w, lx // w, 3).mean(axis=(1, 3))
+    np.testing.assert_allclose(images.box_downsample(image, size), expected, atol=1e-6)
+
+
+def test_box_downsample_keeps_the_mean_and_refuses_to_enlarge():
+    image = np.random.default_rng(4).random((37, 53, 3)).astype(np.float32)
+    assert images.box_downsample(image, (29, 31)).mean() == pytest.approx(image.mean(), rel=1e-6)
+    with pytest.raises(PrefilterError, match="reduces only"):
+        images.box_downsample(image, (54, 10))

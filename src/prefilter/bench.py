@@ -19,6 +19,7 @@ Fournier presets (issue #5): multilobe FLIP <= 1/2 naive, below the best single-
 from __future__ import annotations
 
 import json
+import math
 import os
 from dataclasses import replace
 from pathlib import Path
@@ -28,6 +29,7 @@ import numpy as np
 from prefilter.compare import compare_scene, progress_bar
 from prefilter.gl.context import renderer_name
 from prefilter.gl.render import REFERENCE, Renderer, RenderOptions, composite, scene_modes
+from prefilter.images import box_downsample
 from prefilter.metrics import compare
 from prefilter.scene import Scene, preset_names, resolve_scene
 
@@ -285,19 +287,32 @@ def pyramid_build_study(size: int = BUILD_STUDY_SIZE) -> dict:
     return out
 
 
+def equal_time_size(size: tuple[int, int], ratio: float) -> tuple[int, int]:
+    """The largest render size of the same aspect (integer multiples of (w, h) / gcd(w, h)) with at most
+    `ratio` times the pixels of `size` (and at least `size` itself)."""
+    w, h = size
+    g = math.gcd(w, h)
+    j = max(g, int(math.floor(g * math.sqrt(max(ratio, 1.0)))))
+    return w // g * j, h // g * j
+
+
 def equal_time_study(scene: Scene, size, spp: int, metrics: dict, result) -> dict:
-    """Gaussian against regular point supersampling that costs the same: N x N passes at stratum centres,
-    N² <= t_gaussian / t_point (N = 1 is `point` itself)."""
-    n = max(1, int(np.floor(np.sqrt(metrics["gaussian"]["ms"] / metrics["point"]["ms"]))))
-    renderer = Renderer(scene, size)
+    """Gaussian against point supersampling that costs the same: `point` rendered k times larger, k² =
+    t_gaussian / t_point (equal_time_size), and box-reduced to the size (images.box_downsample), a regular
+    k x k grid per pixel for any k >= 1, as engines supersample with a render scale. Its own frame time is
+    measured and reported beside gaussian's."""
+    size = tuple(result.size)
+    big = equal_time_size(size, metrics["gaussian"]["ms"] / metrics["point"]["ms"])
+    renderer = Renderer(scene, big)
     try:
-        supersampled = composite(renderer.reference(n * n, jitter=False), scene.background)
-        ms = renderer.time_reference(n * n)
+        supersampled = box_downsample(composite(renderer.render("point"), scene.background), size)
+        ms = renderer.time_modes(["point"])["point"]
     finally:
         renderer.release()
     scores = compare(supersampled, result.images[REFERENCE], result.mask)
     return {
-        "spp": n * n,
+        "render_size": list(big),
+        "samples_per_pixel": big[0] * big[1] / (size[0] * size[1]),
         "ms_supersampled": ms,
         "ms_gaussian": metrics["gaussian"]["ms"],
         "flip_supersampled": float(scores["flip"]),

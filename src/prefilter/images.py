@@ -6,6 +6,8 @@ Images are float32 linear-RGB arrays (H, W, 3), top row first.
 - `.exr`: float32 linear RGB, ZIP compression (OpenEXR 3.x package); metadata as JSON in the string
   header attribute `prefilter`.
 Writes are atomic: a temporary file in the destination directory, then os.replace.
+- `box_downsample`: exact area-weighted reduction to a smaller size (a render at a fractional scale seen
+  through the same box pixels).
 """
 
 from __future__ import annotations
@@ -172,6 +174,27 @@ def read_image(path: str | os.PathLike) -> tuple[np.ndarray, dict]:
     if not path.is_file():
         raise PrefilterError(f"{path}: no such image file")
     return readers[ext](path)
+
+
+def _box_weights(n_in: int, n_out: int) -> np.ndarray:
+    """(n_out, n_in): output pixel i covers input [i k, (i + 1) k), k = n_in / n_out; weight = overlap / k."""
+    edges_out = np.arange(n_out + 1) * (n_in / n_out)
+    lo = np.maximum(edges_out[:-1, None], np.arange(n_in)[None, :])
+    hi = np.minimum(edges_out[1:, None], np.arange(1, n_in + 1)[None, :])
+    return np.maximum(hi - lo, 0.0) * (n_out / n_in)
+
+
+def box_downsample(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """(H, W, C) -> (h, w, C) with h <= H, w <= W: each output pixel the mean of the input over its area
+    (fractional input pixels weighted by their overlap), so a render at k times the size, reduced, is a
+    box-filtered supersampling with k² samples per pixel for any k >= 1."""
+    w, h = size
+    rows, cols = image.shape[:2]
+    if h > rows or w > cols:
+        raise PrefilterError(f"box_downsample reduces only: {cols}x{rows} -> {w}x{h}")
+    a_y, a_x = _box_weights(rows, h), _box_weights(cols, w)
+    rows_reduced = np.tensordot(a_y, np.asarray(image, np.float64), axes=(1, 0))  # (h, W, C)
+    return np.tensordot(rows_reduced, a_x, axes=(1, 1)).transpose(0, 2, 1).astype(np.float32)
 
 
 def false_colour(values: np.ndarray, vmax: float = 1.0) -> np.ndarray:
