@@ -11,6 +11,10 @@ Hart et al. 1999 studies on top: coordinate precision (§4.3, Fig. 10), the redu
 temporal flicker over a flight towards the horizon (§4.4).
 Targets (issue #2): best filtered FLIP <= 1/2 point FLIP; filtered time <= 1.2 x point;
 reference time >= 300 x filtered; near/far filtered time within 10 %.
+Gaussian colour maps (issue #3): gaussian FLIP <= 1/3 naive and <= the best Hart mode, gaussian time <= 1.1 x
+naive, and a lower FLIP than `point` supersampled at equal time (rendered at a larger size of the same
+aspect and box-reduced: equal_time_study).
+Microsurfaces (issue #4): surface-filter FLIP <= 1/2 texture-filter and <= 1/3 naive, time <= 1.5 x naive.
 Fournier presets (issue #5): multilobe FLIP <= 1/2 naive, below the best single-lobe baseline where tagged
 "vs-single-lobe", multilobe time <= 3 x unfiltered; the paper's timing table as ratios to "no texture";
 256x256 pyramids bake in <= 60 s.
