@@ -124,7 +124,7 @@ def bench_preset(scene: Scene, size, spp: int, frames: int) -> dict:
         if hart:
             checks["gaussian_flip_le_best_hart"] = flip["gaussian"] <= flip[entry["best_hart"]]
         checks["gaussian_time_le_1.1_naive"] = metrics["gaussian"]["ms"] <= 1.1 * metrics["naive"]["ms"]
-        entry["equal_time"] = equal_time_study(scene, size, spp, metrics, result)
+        entry["equal_time"] = equal_time_study(scene, metrics, result)
         checks["gaussian_beats_equal_time_supersampling"] = (
             entry["equal_time"]["flip_gaussian"] < entry["equal_time"]["flip_supersampled"]
         )
@@ -300,7 +300,7 @@ def equal_time_size(size: tuple[int, int], ratio: float) -> tuple[int, int]:
     return w // g * j, h // g * j
 
 
-def equal_time_study(scene: Scene, size, spp: int, metrics: dict, result) -> dict:
+def equal_time_study(scene: Scene, metrics: dict, result) -> dict:
     """Gaussian against point supersampling that costs the same: `point` rendered k times larger, k² =
     t_gaussian / t_point (equal_time_size), and box-reduced to the size (images.box_downsample), a regular
     k x k grid per pixel for any k >= 1, as engines supersample with a render scale. Its own frame time is

@@ -118,6 +118,7 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
     float curvatureMoment = 0.0;
     vec3 lx = ms_latticeFromObject * dpdx;
     vec3 ly = ms_latticeFromObject * dpdy;
+    vec2 footprint2 = vec2(dot(lx, lx), dot(ly, ly));  // squared axis lengths, lattice units of frequency 1
     for (int i = 0; i < MS_WEIGHT_SLOTS; ++i) {
         bool height = i < MS_MAX_OCTAVES;
         int k = height ? i : i - MS_MAX_OCTAVES;
@@ -134,7 +135,7 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
             ms_heightVariance += residual * MS_NOISE_VARIANCE;
             // the linear part's expected variance over a box footprint, γ² a² (ρ1² + ρ2²) Var(∂n) / 12, is
             // taken out of the residual (and given back per point by ms_fractalGradLinear's gradient)
-            vec2 rho2 = af.y * af.y * vec2(dot(lx, lx), dot(ly, ly));
+            vec2 rho2 = af.y * af.y * footprint2;
             float gamma = full ? 0.0 : ns_linearFraction(rho2.x, rho2.y);
             ms_linearWeight[i] = gamma;
             float linear = gamma * gamma * af.x * af.x * MS_GRADIENT_VARIANCE * (rho2.x + rho2.y) / 12.0;

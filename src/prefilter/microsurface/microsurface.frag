@@ -218,7 +218,6 @@ struct MsMasking {
     float sigmaT;       // height deviations, whole and coarse
     float sigmaC;
     float microVariance;  // the height variance beyond the coarse surface (the samples' and the unresolved)
-    float unsampled;    // the part of D_h's variance beyond the coarse surface that no sample resolves
     float lambdaOT;     // Λ(ω_o), whole and coarse
     float lambdaOC;
     vec2 viewHeights;   // D_h's (shift, variance) for the view alone (Λ_i = 0); with MS_HEIGHT_MAP
@@ -238,7 +237,6 @@ MsMasking ms_masking(vec3 wo, MsSurface s, MsFootprint f) {
     m.sigmaC = sqrt(coarseVariance);
     m.sigmaT = sqrt(microVariance + coarseVariance);
     m.microVariance = microVariance;
-    m.unsampled = microVariance > 0.0 ? s.heightVariance / microVariance : 0.0;
     m.lambdaOT = ms_lambda(wo, m.totalCov);
     m.lambdaOC = ms_lambda(wo, m.coarseCov);
     m.viewHeights = vec2(0.0);
@@ -256,7 +254,7 @@ MsMasking ms_masking(vec3 wo, MsSurface s, MsFootprint f) {
 // (cm_gaussianBox, as the gaussian mode of Hart's model reads it) with the other's variance added to the
 // Gaussian's. The part of that spread that is seen (and lit) is D_h's variance over the micro variance; it
 // scales both. Without a linear part (far away, or a transfer function) this is C̄_h(h + shift, σ²) with
-// σ² D_h's variance times the unsampled share, as the paper has it. Measured (256 px, 64-spp references,
+// σ² D_h's variance times the share of the micro variance that no sample resolves, as the paper has it. Measured (256 px, 64-spp references,
 // surface-filter FLIP, the Gaussian of all the variance -> this): micro-heights-sphere 0.0520 -> 0.0509
 // (0.0737 -> 0.0708 with one sample), the same sphere under ambient light alone 0.0815 -> 0.0772; the
 // terrains unchanged (their relief's linear part spans less than a texel of the map).
@@ -418,7 +416,7 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     // the samples close up on the centre with the full footprint's split. The march, the coarse surface's
     // shadows (once per light, below) and the masking statistics stay those of the whole footprint: the
     // samples resolve what the 1/N footprint adds (sampled*Variance), and D_h's variance keeps only the
-    // part they leave unresolved (`unsampled`). Measured (256 px, 256-spp reference): micro-heights-sphere
+    // part they leave unresolved (ms_heightColour). Measured (256 px, 256-spp reference): micro-heights-sphere
     // 0.079 FLIP with one sample, 0.064 with 2 x 2 and 0.061 with 3 x 3 (the default: 1.28x naive's
     // frame time); micro-slopes-sphere (64 spp) 0.133, 0.108, 0.095.
     // Tried and not kept (micro-heights-sphere, 2 x 2 samples, 0.068 before the horizon rule below):
