@@ -3,15 +3,18 @@
 "For precomputed/tabulated f, we need only precompute the first two moments of f, f̄ and f̄², at each
 level of detail in a mipmap hierarchy ... σ_f² = E[f²] − E[f]² after linear texture interpolation".
 The driver image is uploaded as an RG32F texture of (f, f²) with its MIP pyramid built here by 2x2 box
-means (so level L holds exact block moments), sampled trilinearly with 16x anisotropic filtering; the
-colour comes from the preconvolved map C̄(μ, σ) of colormap/gaussian.py.
+means (so level L holds exact block moments). The moments over a pixel's footprint are the mean of
+`probes` trilinear reads along its longer axis (tabulated.glsl, tb_footprintMoments), or with probes = 0
+one read through the GL's 16x anisotropic filter; the colour comes from the preconvolved map C̄(μ, σ) of
+colormap/gaussian.py.
 
 Modes: `point` (f reconstructed bilinearly at level 0, then c(f): what the reference supersamples),
-`naive` (c of the trilinear/anisotropic MIP of f: today's renderers), `gaussian`.
+`naive` (c of E[f] over the footprint, read as `gaussian` reads it: today's renderers), `gaussian`.
 
 Scene TOML (type = "tabulated"): image = "file.png|.exr" (first channel, PNG 8/16-bit read as [0, 1];
 power-of-two sides), uv_scale = [su, sv] (repeats over the mesh's uvs), value_scale, value_offset
-(f = offset + scale x image), [object.material.colour_table] and [object.material.preconvolved] as for
+(f = offset + scale x image), probes (0-16, default 4: trilinear probes per pixel; 0 = the GL's
+anisotropic filter), [object.material.colour_table] and [object.material.preconvolved] as for
 Hart's model.
 """
 
@@ -94,6 +97,7 @@ class TabulatedMaterial:
     uv_scale: np.ndarray
     source: str
     gaussian: dict = field(default_factory=dict)
+    probes: int = 4  # trilinear reads along the footprint's longer axis; 0: the GL's 16x anisotropic filter
 
     kind = "tabulated"
 
@@ -110,7 +114,7 @@ class TabulatedMaterial:
         return PACKAGE_ROOT / "glsl/common/surface.vert", SHADER_DIR / "tabulated.frag"
 
     def defines(self, options) -> dict[str, object]:
-        return {"TB_WRAP": self.table.wrap_code}
+        return {"TB_WRAP": self.table.wrap_code, "TB_PROBES": self.probes}
 
     def upload(self, ctx: moderngl.Context, mesh) -> TabulatedResources:
         table = self.table.premultiplied()
@@ -122,7 +126,7 @@ class TabulatedMaterial:
         for index, level in enumerate(levels[1:], 1):
             driver.write(np.ascontiguousarray(level, dtype=np.float32).tobytes(), level=index)
         driver.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
-        driver.anisotropy = 16.0
+        driver.anisotropy = 1.0 if self.probes else 16.0  # llvmpipe's textureLod follows the anisotropy
         driver.repeat_x = driver.repeat_y = True
         gaussian_range = (*gaussian.mu_range, gaussian.sigma_max)
         return TabulatedResources(table.upload(ctx), gaussian.upload(ctx), gaussian_range, driver)
@@ -167,4 +171,5 @@ def parse_tabulated(r: Reader, base_dir: Path) -> TabulatedMaterial:
         r.vector("uv_scale", 2, default=[1.0, 1.0]),
         str(image),
         parse_preconvolve_options(r.child("preconvolved")),
+        r.integer("probes", 4, lo=0, hi=16),
     )
