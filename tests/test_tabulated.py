@@ -101,6 +101,19 @@ def test_scene_names_the_missing_image(tmp_path):
         load_scene(scene)
 
 
+def test_scene_names_a_bad_probe_count(tmp_path):
+    image = tmp_path / "f.png"
+    iio.imwrite(image, np.zeros((8, 8), np.uint8))
+    scene = tmp_path / "s.toml"
+    scene.write_text(
+        '[camera]\neye = [0.0, 1.0, 3.0]\ntarget = [0.0, 0.0, 0.0]\n[[object]]\nshape = "plane"\n'
+        '[object.material]\ntype = "tabulated"\nimage = "f.png"\nprobes = 17\n'
+        '[object.material.colour_table]\nstops = [[0.0, "#000000"], [1.0, "#ffffff"]]\n'
+    )
+    with pytest.raises(SceneError, match=r"object\[0\]\.material\.probes"):
+        load_scene(scene)
+
+
 def _footprint_moments_by_brute_force(f, uv, dx, dy, k=24):
     """Mean and standard deviation of bilinear f over each parallelogram uv + a dx + b dy, a, b in
     [-1/2, 1/2] (a box pixel filter), from a k x k grid of points."""
