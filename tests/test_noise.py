@@ -210,6 +210,41 @@ def test_glsl_matches_float64_reference(points32, target, variant, value_fn, gra
 
 
 @pytest.mark.parametrize("target", ["gl330", "es300"])
+def test_glsl_corner_hashes_are_perlins(target):
+    """nz_hash reads its permutation as packed pairs (P[i], P[i + 1]); every corner hash must still be
+    P[P[P[X + i] + Y + j] + Z + k] of Perlin's table, for cells anywhere (negative, beyond 256)."""
+    cells = np.random.default_rng(11).integers(-700, 700, (4096, 3))
+    prelude = (
+        "vec4 corners(vec3 p, bool upper) {\n"
+        "    ivec4 lo, hi;\n"
+        "    nz_hash(ivec3(p), lo, hi);\n"
+        "    return vec4(upper ? hi : lo);\n"
+        "}\n"
+    )
+    lo, hi = (
+        glsl_eval(
+            f"corners(p, {upper})",
+            {"p": cells},
+            4,
+            includes=NOISE_GLSL,
+            target=target,
+            prelude=prelude,
+        )
+        for upper in ("false", "true")
+    )
+    perm = np.array(PERMUTATION)
+    x, y, z = (cells[:, k] & 255 for k in range(3))
+
+    def corner(i, j, k):
+        return perm[(perm[(perm[(x + i) & 255] + y + j) & 255] + z + k) & 255]
+
+    want_lo = np.stack([corner(0, 0, 0), corner(1, 0, 0), corner(0, 1, 0), corner(1, 1, 0)], 1)
+    want_hi = np.stack([corner(0, 0, 1), corner(1, 0, 1), corner(0, 1, 1), corner(1, 1, 1)], 1)
+    np.testing.assert_array_equal(lo, want_lo)
+    np.testing.assert_array_equal(hi, want_hi)
+
+
+@pytest.mark.parametrize("target", ["gl330", "es300"])
 def test_glsl_zero_on_lattice_and_periodic(target):
     rng = np.random.default_rng(8)
     lattice = rng.integers(-300, 300, (256, 3)).astype(np.float32)
