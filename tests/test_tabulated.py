@@ -11,6 +11,7 @@ from prefilter import PrefilterError
 from prefilter.colormap.tabulated import moment_pyramid, read_driver
 from prefilter.gl.context import gl_context
 from prefilter.gl.evaluate import glsl_eval
+from prefilter.gl.render import Renderer
 from prefilter.scene import SceneError, load_scene, resolve_scene
 
 
@@ -170,3 +171,22 @@ def test_footprint_probes_give_the_moments_of_the_covered_texels(target):
         )
     assert errors[4][0] < 0.15 and errors[4][1] < 0.17, errors
     assert errors[4][0] < 0.5 * errors[1][0] and errors[4][1] < 0.5 * errors[1][1], errors
+
+
+def test_the_gl_anisotropic_filter_remains_an_option():
+    """probes = 0 reads the moments through the GL's 16x anisotropic filter: it must render, and on the
+    terrain both reads must give nearly the same picture (the probes differ from it most at the horizon)."""
+    scene = resolve_scene("terrain-data")
+    images = {}
+    for probes in (0, 4):
+        material = replace(scene.objects[0].material, probes=probes)
+        variant = replace(scene, objects=[replace(scene.objects[0], material=material)])
+        renderer = Renderer(variant, (128, 96))
+        try:
+            images[probes] = renderer.render("gaussian")
+        finally:
+            renderer.release()
+    covered = images[4][..., 3] > 0
+    assert np.isfinite(images[0]).all() and covered.mean() > 0.5
+    difference = np.abs(images[0] - images[4])[covered][:, :3]
+    assert 0.0 < difference.mean() < 0.05, difference.mean()
