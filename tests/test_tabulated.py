@@ -91,27 +91,22 @@ def test_read_driver_errors(tmp_path):
     np.testing.assert_array_equal(read_driver(ok), np.ones((8, 16)))
 
 
-def test_scene_names_the_missing_image(tmp_path):
+@pytest.mark.parametrize(
+    ("material", "message"),
+    [
+        ('image = "nowhere.png"', r"object\[0\]\.material\.image: file not found"),
+        ('image = "f.png"\nprobes = 17', r"object\[0\]\.material\.probes: expected an integer in \[0, 16\]"),
+    ],
+)
+def test_scene_errors_name_the_key(tmp_path, material, message):
+    iio.imwrite(tmp_path / "f.png", np.zeros((8, 8), np.uint8))
     scene = tmp_path / "s.toml"
     scene.write_text(
         '[camera]\neye = [0.0, 1.0, 3.0]\ntarget = [0.0, 0.0, 0.0]\n[[object]]\nshape = "plane"\n'
-        '[object.material]\ntype = "tabulated"\nimage = "nowhere.png"\n'
+        f'[object.material]\ntype = "tabulated"\n{material}\n'
         '[object.material.colour_table]\nstops = [[0.0, "#000000"], [1.0, "#ffffff"]]\n'
     )
-    with pytest.raises(SceneError, match=r"object\[0\]\.material\.image: file not found"):
-        load_scene(scene)
-
-
-def test_scene_names_a_bad_probe_count(tmp_path):
-    image = tmp_path / "f.png"
-    iio.imwrite(image, np.zeros((8, 8), np.uint8))
-    scene = tmp_path / "s.toml"
-    scene.write_text(
-        '[camera]\neye = [0.0, 1.0, 3.0]\ntarget = [0.0, 0.0, 0.0]\n[[object]]\nshape = "plane"\n'
-        '[object.material]\ntype = "tabulated"\nimage = "f.png"\nprobes = 17\n'
-        '[object.material.colour_table]\nstops = [[0.0, "#000000"], [1.0, "#ffffff"]]\n'
-    )
-    with pytest.raises(SceneError, match=r"object\[0\]\.material\.probes"):
+    with pytest.raises(SceneError, match=message):
         load_scene(scene)
 
 
