@@ -256,6 +256,20 @@ def test_constant_map_every_level_and_footprint_gives_the_point_image(tmp_path):
             np.testing.assert_allclose(images[mode], images["point"], atol=2e-3, err_msg=mode)
 
 
+def test_lod_bias_moves_multilobe_between_the_base_level_and_the_pyramid():
+    """lod_bias shifts multilobe's level: far below 0 every pixel is magnified, so multilobe is the
+    base level, the `point` image; at 0 the pyramid's levels filter the map and it is not."""
+    material = (
+        'type = "normal-map"\nspecular = 0.5\nexponent = 80\nanisotropy = 2\nlod_bias = {bias}\n'
+        '[object.material.generator]\nname = "hemispheres"\nsize = [32, 32]\ncount = 4'
+    )
+    images = {}
+    for bias in (0.0, -8.0):
+        images[bias] = _render(_scene(material.format(bias=bias), uv=(24.0, 24.0)), ["point", "multilobe"])
+    np.testing.assert_allclose(images[-8.0]["multilobe"], images[-8.0]["point"], atol=1e-6)
+    assert np.abs(images[0.0]["multilobe"] - images[0.0]["point"]).mean() > 0.01
+
+
 def test_multiple_surface_is_its_peaks_and_drops_those_below_the_surface():
     velvet = _scene('type = "multiple-surface"\npreset = "velvet"').objects[0].material
     assert isinstance(velvet, NormalsMaterial)
@@ -323,6 +337,7 @@ def test_npot_map_bakes_packs_and_renders(tmp_path):
             "below the surface",
         ),
         ('type = "normal-map"\nnormal_map = "n.exr"\n[object.material.pyramid]\ntile = 12', "power of two"),
+        ('type = "normal-map"\nnormal_map = "n.exr"\nlod_bias = "finer"', "lod_bias: expected a number"),
     ],
 )
 def test_bad_materials_name_the_key(tmp_path, material, message):

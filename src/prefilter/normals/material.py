@@ -11,6 +11,7 @@ and mask every mode.
     normal_map = "file.png|.exr"     height_map = "file.png|.exr"     height_scale = 1.0
     [generator] name = "hemispheres|cylinders|twill|stochastic", other keys = its parameters
     uv_scale = [1, 1]   albedo = "#rrggbb"   specular = 0.3 (k_s)   exponent = 100 (n0)   shadowing = false
+    anisotropy = 1 (multilobe's footprint samples, 1-16)   lod_bias = 0 (levels added to multilobe's level)
     [pyramid] max_peaks = 7, rms_tolerance = 0.05, max_tolerance = 0.05, n_theta = 18, n_phi = 72,
               pole_cap_degrees = 5/12, tile = 32, horizon_distance, exact = "texels" | "field"
 
@@ -90,6 +91,7 @@ class NormalsMaterial:
     shadowing: bool
     options: PyramidOptions
     anisotropy: int = 1  # samples along the footprint's longer axis in `multilobe` (1: isotropic)
+    lod_bias: float = 0.0  # levels added to `multilobe`'s level choice
     scheduler: str | None = None
     _pyramid: NormalPyramid | None = field(default=None, repr=False, compare=False)
 
@@ -181,6 +183,7 @@ class NormalsMaterial:
                 "u_albedo": tuple(float(v) for v in self.albedo),
                 "u_specular": float(self.specular),
                 "u_exponent": float(self.exponent),
+                "nd_lodBias": float(self.lod_bias),
             },
         )
 
@@ -303,6 +306,7 @@ def _common(r: Reader) -> dict:
         "exponent": r.number("exponent", 100.0, lo=1.0, hi=1e5),
         "shadowing": r.boolean("shadowing", False),
         "anisotropy": r.integer("anisotropy", 1, lo=1, hi=16),
+        "lod_bias": r.number("lod_bias", 0.0, lo=-8.0, hi=8.0),
     }
 
 

@@ -9,7 +9,8 @@
 //
 // Filtering: the level comes from the footprint (the pixel's Jacobian in base texels: lod = log2 of its
 // longer axis, as MIP mapping does, or, with ND_ANISOTROPY = N > 1, of 1/n of it at each of n <= N
-// samples along that axis, as anisotropic texture units do); within a level, bilinear weights over 4
+// samples along that axis, as anisotropic texture units do), plus nd_lodBias (0 unless the material sets
+// lod_bias; docs/normals.md measures what a finer level trades); within a level, bilinear weights over 4
 // texels; between levels, linear weights over 2 levels. The peaks of all contributing texels are used,
 // each with its amplitude multiplied by its interpolation weight (up to 8 texels x K peaks per sample) —
 // never averaged. A level whose texels are all alike (the map tiles with a period that fits in one
@@ -26,6 +27,7 @@ uniform vec4 nd_level[ND_MAX_LEVELS];
 uniform float nd_levelAlike[ND_MAX_LEVELS];  // 1: every texel of the level holds the same peaks
 uniform int nd_levelCount;
 uniform int nd_maxPeaks;
+uniform float nd_lodBias;  // @param -3..1 LOD bias: levels added to multilobe's level choice (negative: finer levels, cheaper, sharper; fine weaves alias); the baselines keep the GL's choice
 
 // Wrapped (tiling) texel of a level.
 ivec3 nd_atlasTexel(int level, ivec2 texel, int layer) {
@@ -94,7 +96,7 @@ NdFootprint nd_footprint(vec2 dUVdx, vec2 dUVdy) {
     f.count = int(clamp(ceil(longer / shorter - 0.01), 1.0, float(ND_ANISOTROPY)));
     f.step = major / float(f.count);
     f.start = -0.5 * major + 0.5 * f.step;
-    float lod = log2(max(longer / float(f.count), 1e-8));
+    float lod = log2(max(longer / float(f.count), 1e-8)) + nd_lodBias;
     f.lod = clamp(lod, 0.0, float(nd_levelCount - 1));
     f.magnification = clamp(-lod, 0.0, 1.0);
     return f;
