@@ -39,6 +39,7 @@ float tb_driverAtBase(sampler2D driver, vec2 uv) {
 #ifndef TB_PROBES
 #define TB_PROBES 4
 #endif
+const float TB_LEVEL_SHIFT = -1.0;  // levels below the one as wide as a probe's share (see above)
 
 vec2 tb_footprintMoments(sampler2D driver, vec2 uv, vec2 dx, vec2 dy) {
     vec2 size = vec2(textureSize(driver, 0));
@@ -46,7 +47,7 @@ vec2 tb_footprintMoments(sampler2D driver, vec2 uv, vec2 dx, vec2 dy) {
     vec2 major = lx > ly ? dx : dy;
     float count = float(TB_PROBES);
     float texels = max(sqrt(max(lx, ly)) / count, sqrt(min(lx, ly)));
-    float lod = log2(max(texels, 1e-6)) - 1.0;
+    float lod = log2(max(texels, 1e-6)) + TB_LEVEL_SHIFT;
     vec2 sum = vec2(0.0);
     for (int i = 0; i < TB_PROBES; ++i) {
         sum += textureLod(driver, uv + ((float(i) + 0.5) / count - 0.5) * major, lod).xy;
