@@ -98,9 +98,14 @@ float ms_reliefGate = 0.0;  // g of the last ms_reliefFootprint: 1 where the coa
 // sponge within 0.0007. β₁ everywhere also took the slope sphere to 0.0729, but the grazing terrain's far
 // field from 0.0501 to 0.0618 (its relief stands out of the pixel there, and the statistics render a
 // smoother horizon than the reference's few visible peaks).
-float ms_meanFraction(vec3 jx, vec3 jy) {
-    vec2 fractions = ns_meanFractions(dot(jx, jx), dot(jy, jy));  // (β, β₁)
+// fractions: ns_splitFractions' (β, β₁, γ) of the octave's footprint.
+float ms_meanFraction(vec3 fractions) {
     return mix(fractions.y, fractions.x, ms_reliefGate);
+}
+
+// ns_splitFractions for footprint axes jx, jy in an octave's lattice cells.
+vec3 ms_splitFractions(vec3 jx, vec3 jy) {
+    return ns_splitFractions(dot(jx, jx), dot(jy, jy));
 }
 
 // full = true: every octave is real geometry (point mode and each reference pass).
@@ -118,7 +123,7 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
     float curvatureMoment = 0.0;
     vec3 lx = ms_latticeFromObject * dpdx;
     vec3 ly = ms_latticeFromObject * dpdy;
-    vec2 footprint2 = vec2(dot(lx, lx), dot(ly, ly));  // squared axis lengths, lattice units of frequency 1
+    float footprint2 = dot(lx, lx) + dot(ly, ly);  // ρ1² + ρ2² in lattice units of frequency 1
     for (int i = 0; i < MS_WEIGHT_SLOTS; ++i) {
         bool height = i < MS_MAX_OCTAVES;
         int k = height ? i : i - MS_MAX_OCTAVES;
@@ -128,17 +133,17 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
             continue;
         }
         vec2 af = ms_octave[i];
-        float w = full ? 1.0 : ms_meanFraction(af.y * lx, af.y * ly);
+        vec3 fractions = ms_splitFractions(af.y * lx, af.y * ly);  // (β, β₁, γ), one evaluation
+        float w = full ? 1.0 : ms_meanFraction(fractions);
         ms_weight[i] = w;
         float residual = (1.0 - w * w) * af.x * af.x;
         if (height) {
             ms_heightVariance += residual * MS_NOISE_VARIANCE;
             // the linear part's expected variance over a box footprint, γ² a² (ρ1² + ρ2²) Var(∂n) / 12, is
             // taken out of the residual (and given back per point by ms_fractalGradLinear's gradient)
-            vec2 rho2 = af.y * af.y * footprint2;
-            float gamma = full ? 0.0 : ns_linearFraction(rho2.x, rho2.y);
+            float gamma = full ? 0.0 : fractions.z;
             ms_linearWeight[i] = gamma;
-            float linear = gamma * gamma * af.x * af.x * MS_GRADIENT_VARIANCE * (rho2.x + rho2.y) / 12.0;
+            float linear = gamma * gamma * af.x * af.x * MS_GRADIENT_VARIANCE * af.y * af.y * footprint2 / 12.0;
             ms_heightResidual += max(residual * MS_NOISE_VARIANCE - linear, 0.0);
             ms_slopeVariance += residual * af.y * af.y * MS_GRADIENT_VARIANCE;
             ms_coarseHeightVariance += w * w * af.x * af.x * MS_NOISE_VARIANCE;
@@ -244,7 +249,7 @@ vec2 ms_coarseSlope(vec3 p, mat3 frame, vec3 dpdx, vec3 dpdy, out float height) 
     for (int k = 0; k < MS_MAX_OCTAVES; ++k) {
         float f = ms_octave[k].y;
         vec4 octave = ms_octaveGrad(lp, k);
-        fg += ms_meanFraction(f * lx, f * ly) * octave;
+        fg += ms_meanFraction(ms_splitFractions(f * lx, f * ly)) * octave;
         height += ms_weight[k] * octave.w;
         if (k + 1 >= ms_heightOctaves) break;  // at the end of the body (MS_MAX_OCTAVES)
     }
@@ -315,7 +320,7 @@ void ms_reliefFootprint(vec3 q, vec3 view, inout vec3 dpdx, inout vec3 dpdy) {
     float coarseVariance = 0.0;
     for (int k = 0; k < MS_MAX_OCTAVES; ++k) {
         vec2 af = ms_octave[k];
-        float w = ns_meanFractions(dot(af.y * lx, af.y * lx), dot(af.y * ly, af.y * ly)).x;  // β, as the gate was chosen
+        float w = ms_splitFractions(af.y * lx, af.y * ly).x;  // β, as the gate was chosen
         coarseVariance += w * w * af.x * af.x * MS_NOISE_VARIANCE;
         if (k + 1 >= ms_heightOctaves) break;  // at the end of the body (MS_MAX_OCTAVES)
     }

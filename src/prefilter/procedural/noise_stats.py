@@ -236,7 +236,7 @@ def mean_fraction_fit() -> tuple[float, float, float, float]:
 
 
 def mean_fraction(rho1: np.ndarray, rho2: np.ndarray) -> np.ndarray:
-    """NumPy twin of ns_meanFractions(ρ1², ρ2²).y: β₁ of a footprint with axis lengths ρ1, ρ2 (lattice
+    """NumPy twin of ns_splitFractions(ρ1², ρ2²).y: β₁ of a footprint with axis lengths ρ1, ρ2 (lattice
     units)."""
     fit = mean_fraction_fit()
     return _rational_fall(rho1, *fit) * _rational_fall(rho2, *fit)
@@ -276,37 +276,32 @@ def glsl_source(stats: NoiseStats) -> str:
     return "\n".join(lines) + "\n" + _GLSL_FALL
 
 
-# The fits' evaluation: ns_fall for procedural/hart.glsl, ns_meanFractions and ns_linearFraction for
-# microsurface/heightfield.glsl.
+# The fits' evaluation: one rational product for every fit (ns_fits), read as (beta, kappa, gamma,
+# 1 - lambda) by procedural/hart.glsl and as (beta, beta_1, gamma) by microsurface/heightfield.glsl.
 _GLSL_FALL = """
-// F(rho1) F(rho2) of (beta, kappa, gamma, 1 - lambda) for the squared axis lengths x1 = rho1^2,
-// x2 = rho2^2. x is capped where every F is 0 to float precision, so that neither product overflows.
+// F(rho1) F(rho2) lane by lane for the coefficients (a, b, c, d) of four fits, at the squared axis lengths
+// x1 = rho1^2, x2 = rho2^2. x is capped where every F is 0 to float precision, so that neither product
+// overflows. Lanes a caller does not read cost nothing: the compiler drops them.
+vec4 ns_fits(vec4 a, vec4 b, vec4 c, vec4 d, float x1, float x2) {
+    vec2 x = min(vec2(x1, x2), vec2(1e12));
+    vec4 nx = 1.0 + a * x.x, ny = 1.0 + a * x.y;
+    vec4 dx = nx + x.x * (d + b * sqrt(x.x) + c * x.x);
+    vec4 dy = ny + x.y * (d + b * sqrt(x.y) + c * x.y);
+    return (nx * ny) / (dx * dy);
+}
+
+// (beta, kappa, gamma, 1 - lambda).
 vec4 ns_fall(float x1, float x2) {
-    vec2 x = min(vec2(x1, x2), vec2(1e12));
-    vec4 nx = 1.0 + NS_FALL_A * x.x, ny = 1.0 + NS_FALL_A * x.y;
-    vec4 dx = nx + x.x * (NS_FALL_D + NS_FALL_B * sqrt(x.x) + NS_FALL_C * x.x);
-    vec4 dy = ny + x.y * (NS_FALL_D + NS_FALL_B * sqrt(x.y) + NS_FALL_C * x.y);
-    return (nx * ny) / (dx * dy);
+    return ns_fits(NS_FALL_A, NS_FALL_B, NS_FALL_C, NS_FALL_D, x1, x2);
 }
 
-// (beta, beta_1): ns_fall's first component and beta_1 (NS_MEAN_FALL) in one evaluation, for the same
-// x1 = rho1^2, x2 = rho2^2 (capped like ns_fall).
-vec2 ns_meanFractions(float x1, float x2) {
-    vec2 a = vec2(NS_FALL_A.x, NS_MEAN_FALL.x), b = vec2(NS_FALL_B.x, NS_MEAN_FALL.y);
-    vec2 c = vec2(NS_FALL_C.x, NS_MEAN_FALL.z), d = vec2(NS_FALL_D.x, NS_MEAN_FALL.w);
-    vec2 x = min(vec2(x1, x2), vec2(1e12));
-    vec2 nx = 1.0 + a * x.x, ny = 1.0 + a * x.y;
-    vec2 dx = nx + x.x * (d + b * sqrt(x.x) + c * x.x);
-    vec2 dy = ny + x.y * (d + b * sqrt(x.y) + c * x.y);
-    return (nx * ny) / (dx * dy);
-}
-
-// gamma alone: ns_fall's third component for the same x1 = rho1^2, x2 = rho2^2 (capped like ns_fall).
-float ns_linearFraction(float x1, float x2) {
-    vec2 x = min(vec2(x1, x2), vec2(1e12));
-    vec2 n = 1.0 + NS_FALL_A.z * x;
-    vec2 d = n + x * (NS_FALL_D.z + NS_FALL_B.z * sqrt(x) + NS_FALL_C.z * x);
-    return (n.x * n.y) / (d.x * d.y);
+// (beta, beta_1, gamma): the split's fractions with and without the curvature term, and the linear one.
+vec3 ns_splitFractions(float x1, float x2) {
+    vec4 a = vec4(NS_FALL_A.x, NS_MEAN_FALL.x, NS_FALL_A.z, 0.0);
+    vec4 b = vec4(NS_FALL_B.x, NS_MEAN_FALL.y, NS_FALL_B.z, 0.0);
+    vec4 c = vec4(NS_FALL_C.x, NS_MEAN_FALL.z, NS_FALL_C.z, 0.0);
+    vec4 d = vec4(NS_FALL_D.x, NS_MEAN_FALL.w, NS_FALL_D.z, 0.0);
+    return ns_fits(a, b, c, d, x1, x2).xyz;
 }
 """
 
