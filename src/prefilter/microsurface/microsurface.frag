@@ -254,10 +254,11 @@ MsMasking ms_masking(vec3 wo, MsSurface s, MsFootprint f) {
 // (cm_gaussianBox, as the gaussian mode of Hart's model reads it) with the other's variance added to the
 // Gaussian's. The part of that spread that is seen (and lit) is D_h's variance over the micro variance; it
 // scales both. Without a linear part (far away, or a transfer function) this is C̄_h(h + shift, σ²) with
-// σ² D_h's variance times the share of the micro variance that no sample resolves, as the paper has it. Measured (256 px, 64-spp references,
-// surface-filter FLIP, the Gaussian of all the variance -> this): micro-heights-sphere 0.0520 -> 0.0509
-// (0.0737 -> 0.0708 with one sample), the same sphere under ambient light alone 0.0815 -> 0.0772; the
-// terrains unchanged (their relief's linear part spans less than a texel of the map).
+// σ² D_h's variance times the share of the micro variance that no sample resolves, as the paper has it.
+// Measured (256 px, 64-spp references, surface-filter FLIP, the Gaussian of all the variance -> this):
+// micro-heights-sphere 0.0520 -> 0.0509 (0.0737 -> 0.0708 with one sample), the same sphere under ambient
+// light alone 0.0815 -> 0.0772; the terrains unchanged (their relief's linear part spans less than a texel
+// of the map).
 vec4 ms_heightColour(MsSurface s, MsMasking m, vec2 heights, vec3 boxX, vec3 boxY, float perturbVariance) {
     float seen = heights.y / max(m.microVariance, 1e-30);
     vec2 g = abs(vec2(dot(s.linear, boxX), dot(s.linear, boxY))) * sqrt(seen);
