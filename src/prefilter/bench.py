@@ -390,7 +390,11 @@ def reduced_study(scene: Scene, size, spp: int, frames: int) -> dict:
 def first_order_study(scene: Scene, size, spp: int, frames: int) -> dict:
     """Hart §3 as printed: `hart-sat` with its box centred on f at the pixel centre (--first-order) against
     the estimated pixel mean of f, both against one reference; the frame time ÷ `point` of each is
-    measured round-robin in its own renderer (the option leaves `point` alone)."""
+    measured round-robin in its own renderer (the option leaves `point` and `naive` alone).
+
+    The same option drops the curvature from `gaussian`'s statistics (its mean keeps the terms' β n, its
+    σ² the gradient's linear part and the unresolved octaves), so `gaussian` is measured too, ÷ `naive`:
+    what the Gaussian filter costs when its statistics are first order, as Hart's width is."""
     out = {}
     ref_rgb = mask = None
     for label, options in (
@@ -403,11 +407,16 @@ def first_order_study(scene: Scene, size, spp: int, frames: int) -> dict:
                 ref = renderer.reference(spp)
                 mask = renderer.covered(ref, spp)
                 ref_rgb = composite(ref, scene.background)
-            image = composite(renderer.render("hart-sat"), scene.background)
-            ms = renderer.time_modes(["point", "hart-sat"], frames)
+            flips = {}
+            for mode in ("hart-sat", "gaussian"):
+                image = composite(renderer.render(mode), scene.background)
+                flips[mode] = float(compare(image, ref_rgb, mask)["flip"])
+            ms = renderer.time_modes(["point", "naive", "hart-sat", "gaussian"], frames)
             out[label] = {
-                "flip": float(compare(image, ref_rgb, mask)["flip"]),
+                "flip": flips["hart-sat"],
                 "time_vs_point": ms["hart-sat"] / ms["point"],
+                "gaussian_flip": flips["gaussian"],
+                "gaussian_time_vs_naive": ms["gaussian"] / ms["naive"],
             }
         finally:
             renderer.release()
