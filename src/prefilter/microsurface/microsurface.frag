@@ -58,6 +58,12 @@ const mat3 MS_ENV_FROM_WORLD = mat3(vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), ve
 #define MS_PI 3.14159265
 // The reach of the shading samples' shadow profile in standard deviations of the coarse slope (ms_shade).
 #define MS_REACH_DEVIATIONS 4.0
+// How far surface-filter's shading samples close up where the coarse relief stands out of the pixel (ms_shade's
+// gate = MS_RELIEF_CLOSING x ms_reliefGate): at gate 1 they keep 1 - 0.35 of their offsets. They collapsed onto
+// the centre until 2026-12-05; docs/microsurface.md ("Shading samples") has the measurements.
+#ifndef MS_RELIEF_CLOSING
+#define MS_RELIEF_CLOSING 0.35
+#endif
 
 in vec3 v_solid;  // object-space position on the macro surface
 
@@ -414,7 +420,7 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     // (the share of the pixel's rays it catches; below). A sub-pixel point is where the sub-pixel
     // ray meets a plane through the marched point (ms_subpixelPoint, below); no ray is
     // marched again. Where the relief stands out of the pixel (gate) it is geometry already and
-    // the samples close up on the centre with the full footprint's split. The march, the coarse surface's
+    // the samples close up towards the centre, their footprint's split towards the whole one's. The march, the coarse surface's
     // shadows (once per light, below) and the masking statistics stay those of the whole footprint: the
     // samples resolve what the 1/N footprint adds (sampled*Variance), and D_h's variance keeps only the
     // part they leave unresolved (ms_heightColour). Measured (256 px, 256-spp reference): micro-heights-sphere
@@ -463,7 +469,7 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     float footprintHeightVariance = ms_heightVariance;
     float footprintSlopeVariance = ms_slopeVariance;
 #if MS_SHADING_SAMPLES > 1
-    // Where the relief stands out of the pixel it is geometry already: the samples close up on the centre.
+    // Where the relief stands out of the pixel it is geometry already: the samples close up towards the centre.
     vec2 sub = mix(1.0 / vec2(MS_GRID_X, MS_GRID_Y), vec2(1.0), gate);  // the sub-box, in pixel axes
     // The plane the samples are placed on (ms_subpixelPoint) carries the coarse surface's tilt over the
     // region they can reach, twice the pixel (a sample may lie up to twice its offset from q), not the tilt
@@ -659,7 +665,9 @@ void main() {
 #ifdef MODE_SURFACE_FILTER
     // Where the relief stands out of the pixel (ms_reliefGate >= 1/2), MS_RELIEF_RAYS sub-rays spread over the
     // pixel's extent along the macro normal are marched as one column (ms_marchColumn) and shaded each, with
-    // the shading samples closed up; their radiances are averaged. Elsewhere the column is the centre ray.
+    // the shading samples closed up; their radiances are averaged. Elsewhere the column is the centre ray,
+    // and its samples close up by MS_RELIEF_CLOSING of the gate: the sub-pixel rays' hits on relief that
+    // stands out of the pixel still spread over its facets, if less than over the coarse plane.
     vec3 up = ms_macroNormal(p0);
     vec3 upAcross = up - dot(up, d) * d;  // what an offset along up moves the ray across itself
     float across2 = max(dot(upAcross, upAcross), 1e-6);
@@ -677,7 +685,7 @@ void main() {
     }
     float hits[MS_RELIEF_RAYS];
     ms_marchColumn(o, d, up, offsets, rays, MS_MAX_STEPS, hits);
-    float gate = rays > 1 ? 1.0 : ms_reliefGate;
+    float gate = rays > 1 ? 1.0 : MS_RELIEF_CLOSING * ms_reliefGate;
     vec3 radiance = vec3(0.0);
     float shown = 0.0;
     for (int k = 0; k < MS_RELIEF_RAYS; ++k) {
