@@ -58,9 +58,9 @@ const mat3 MS_ENV_FROM_WORLD = mat3(vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), ve
 #define MS_PI 3.14159265
 // The reach of the shading samples' shadow profile in standard deviations of the coarse slope (ms_shade).
 #define MS_REACH_DEVIATIONS 4.0
-// How far surface-filter's shading samples close up where the coarse relief stands out of the pixel (ms_shade's
-// gate = MS_RELIEF_CLOSING x ms_reliefGate): at gate 1 they keep 1 - 0.35 of their offsets. They collapsed onto
-// the centre until 2026-12-05; docs/microsurface.md ("Shading samples") has the measurements.
+// How far surface-filter's shading samples close up where the coarse relief stands out of the pixel
+// (ms_shade's gate = MS_RELIEF_CLOSING x ms_reliefGate): at gate 1 they keep 65 % of their offsets. They
+// collapsed onto the centre until 2026-12-05; docs/microsurface.md ("Shading samples") has the measurements.
 #ifndef MS_RELIEF_CLOSING
 #define MS_RELIEF_CLOSING 0.35
 #endif
@@ -420,12 +420,12 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     // (the share of the pixel's rays it catches; below). A sub-pixel point is where the sub-pixel
     // ray meets a plane through the marched point (ms_subpixelPoint, below); no ray is
     // marched again. Where the relief stands out of the pixel (gate) it is geometry already and
-    // the samples close up towards the centre, their footprint's split towards the whole one's. The march, the coarse surface's
-    // shadows (once per light, below) and the masking statistics stay those of the whole footprint: the
-    // samples resolve what the 1/N footprint adds (sampled*Variance), and D_h's variance keeps only the
-    // part they leave unresolved (ms_heightColour). Measured (256 px, 256-spp reference): micro-heights-sphere
-    // 0.079 FLIP with one sample, 0.064 with 2 x 2 and 0.061 with 3 x 3 (the default: 1.28x naive's
-    // frame time); micro-slopes-sphere (64 spp) 0.133, 0.108, 0.095.
+    // the samples close up towards the centre, their footprint's split towards the whole one's. The
+    // march, the coarse surface's shadows (once per light, below) and the masking statistics stay those
+    // of the whole footprint: the samples resolve what the 1/N footprint adds (sampled*Variance), and
+    // D_h's variance keeps only the part they leave unresolved (ms_heightColour). Measured (256 px,
+    // 256-spp reference): micro-heights-sphere 0.079 FLIP with one sample, 0.064 with 2 x 2 and 0.061 with
+    // 3 x 3 (the default: 1.28x naive's frame time); micro-slopes-sphere (64 spp) 0.133, 0.108, 0.095.
     // Tried and not kept (micro-heights-sphere, 2 x 2 samples, 0.068 before the horizon rule below):
     // re-marching the four sub-pixel rays (0.050 but 3.7x the frame time); Newton steps from the
     // tangent plane onto the sampled surface; weights by Smith's masking of the samples' mid-octave
@@ -469,7 +469,8 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     float footprintHeightVariance = ms_heightVariance;
     float footprintSlopeVariance = ms_slopeVariance;
 #if MS_SHADING_SAMPLES > 1
-    // Where the relief stands out of the pixel it is geometry already: the samples close up towards the centre.
+    // Where the relief stands out of the pixel it is geometry already: the samples close up towards the
+    // centre.
     vec2 sub = mix(1.0 / vec2(MS_GRID_X, MS_GRID_Y), vec2(1.0), gate);  // the sub-box, in pixel axes
     // The plane the samples are placed on (ms_subpixelPoint) carries the coarse surface's tilt over the
     // region they can reach, twice the pixel (a sample may lie up to twice its offset from q), not the tilt
