@@ -20,6 +20,7 @@ from prefilter.procedural.noise import footprint_curvature, perlin_noise, perlin
 from prefilter.procedural.noise_stats import (
     GLSL,
     footprint_samples,
+    glsl_source,
     mean_fraction,
     mean_fraction_fit,
     measure_entry,
@@ -263,6 +264,12 @@ def test_driver_statistics_against_brute_force_footprints():
         centre = sum(t.amplitude * perlin_noise(centres @ t.matrix.T) for t in terms)
         error = np.mean((mu - true_mean) ** 2)
         assert error < 0.1 * np.mean((centre - true_mean) ** 2) and error < 0.05 * total, scale
+
+
+def test_the_checked_in_glsl_is_what_the_generator_writes():
+    """noise_stats.glsl is generated from the template in noise_stats.py (`python -m
+    prefilter.procedural.noise_stats`): an edit to either side without regenerating fails here."""
+    assert GLSL.read_text() == glsl_source(noise_stats())
 
 
 def test_generated_glsl_holds_the_fitted_coefficients():
