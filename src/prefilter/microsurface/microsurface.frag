@@ -59,10 +59,16 @@ const mat3 MS_ENV_FROM_WORLD = mat3(vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), ve
 // The reach of the shading samples' shadow profile in standard deviations of the coarse slope (ms_shade).
 #define MS_REACH_DEVIATIONS 4.0
 // How far surface-filter's shading samples close up where the coarse relief stands out of the pixel
-// (ms_shade's gate = MS_RELIEF_CLOSING x ms_reliefGate): at gate 1 they keep 65 % of their offsets. They
-// collapsed onto the centre until 2026-12-05; docs/microsurface.md ("Shading samples") has the measurements.
+// (ms_shade's gate = MS_RELIEF_CLOSING x ms_reliefGate): at gate 1 they keep 80 % of their offsets. They
+// collapsed onto the centre until 2026-12-05 and kept 65 % until their weights below (later that day);
+// docs/microsurface.md ("Shading samples") has the measurements.
 #ifndef MS_RELIEF_CLOSING
-#define MS_RELIEF_CLOSING 0.35
+#define MS_RELIEF_CLOSING 0.2
+#endif
+// How fast a shading sample's coarse slope decorrelates from the marched point's, in units of the coarse
+// surface's RMS frequency ms_coarseFrequency times the sample's distance from it (ms_shade's weights).
+#ifndef MS_SLOPE_DECORRELATION
+#define MS_SLOPE_DECORRELATION 6.5
 #endif
 
 in vec3 v_solid;  // object-space position on the macro surface
@@ -535,8 +541,7 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
 #endif
 #endif
     vec3 radiance = vec3(0.0);
-    vec3 plainSum = vec3(0.0);
-    float areaSum = 0.0;
+    float weightSum = 0.0;
 #if MS_SHADING_SAMPLES > 1
     int sampleCount = gate < 1.0 ? MS_SHADING_SAMPLES : 1;  // all at the centre: shade it once
 #else
@@ -636,13 +641,29 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
         // the facets that face the eye, red on the snake, were over-weighted (its top rows +0.0044 red per
         // pixel; now +0.0031). Measured (256 px, 64-spp references, surface-filter FLIP before -> after, time
         // unchanged): height sphere 0.0509 -> 0.0499, slope sphere 0.0775 -> 0.0767, snake 0.0705 -> 0.0698.
-        radiance += area * sampleRadiance;
-        areaSum += area;
-        plainSum += sampleRadiance;
+        // That share is right for a sample whose slope is independent of the marched point q's. But q is a
+        // point the eye sees, so its facet already leans towards the eye, and a sample close to q lies on
+        // that facet: weighting it by the area again counted the preference twice, and where the relief
+        // stands out of the pixel the samples, which close up towards q there, made the terrains' near
+        // field 3 % too dark (luminance -0.005 on micro-heights-terrain). The weight is area^(1 - ρ), ρ the
+        // correlation of the sample's coarse slope with q's, exp(-(c κ |δ|)² / 2) for the sample's offset δ
+        // along the macro surface and the coarse RMS frequency κ: 1 on q's facet, the area for a sample
+        // independent of q. c = MS_SLOPE_DECORRELATION; docs/microsurface.md has the measurements.
+#if MS_SHADING_SAMPLES > 1
+        vec3 lag = pk - q;
+        lag -= dot(lag, frame[2]) * frame[2];
+        float decorrelation = MS_SLOPE_DECORRELATION * ms_coarseFrequency * length(lag);
+        float correlation = exp(-0.5 * decorrelation * decorrelation);
+#else
+        float correlation = 1.0;
+#endif
+        // (every sample's facets facing away from the eye, area 0: a near miss of the march; their plain mean)
+        float weight = pow(max(area, 1e-30), 1.0 - correlation);
+        radiance += weight * sampleRadiance;
+        weightSum += weight;
         if (k + 1 >= sampleCount) break;  // at the end of the body, as heightfield.glsl's octave loops
     }
-    // (every sample facing away from the eye: a near miss of the march; their plain mean)
-    radiance = areaSum > 0.0 ? radiance / areaSum : plainSum / float(sampleCount);
+    radiance /= weightSum;
 #endif
     return radiance;
 }
