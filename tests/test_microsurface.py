@@ -617,8 +617,11 @@ def test_shading_samples_keep_the_snakes_grazing_rows_from_turning_red():
     placed on the plane tilted as the surface is at the centre ray's hit, a visible point, so leaning
     towards the eye. Now each sample's weight is its facets' expected projected area E[(o_z - s·o_xy)⁺] and
     the plane carries the coarse surface's tilt over twice the pixel. Against a 16-spp ray-marched
-    reference at 128 px, the mean red excess in the snake's upper third is 0.0002 per pixel (0.0027 with
-    both old choices, 0.0016 with the new weights alone)."""
+    reference at 128 px, the mean red excess in the snake's upper third was 0.0002 per pixel (0.0027 with
+    both old choices, 0.0016 with the new weights alone). The fBm's lean of the visible slopes (ray cast,
+    fractal_masking.slope_lean; 2026-12-05) takes it to 0.0011 (0.0006 -> 0.0010 at 256 px against 64 spp)
+    while the snake's FLIP goes down (0.0660 -> 0.0655 there), so the bound is 0.0015: well under the
+    double count's 0.0027."""
     from prefilter.scene import resolve_scene
 
     reference, mask, images = _against_reference(
@@ -628,7 +631,7 @@ def test_shading_samples_keep_the_snakes_grazing_rows_from_turning_red():
     upper = mask.copy()
     upper[rows[0] + (rows[-1] - rows[0]) // 3 :] = False
     excess = images["surface-filter"] - reference
-    assert abs(excess[upper].mean(axis=0)[0]) < 0.001, excess[upper].mean(axis=0)
+    assert abs(excess[upper].mean(axis=0)[0]) < 0.0015, excess[upper].mean(axis=0)
 
 
 SLOPES_UNDER_SKY = """
@@ -776,6 +779,27 @@ def test_effective_masking_slopes_match_ray_casting_on_a_fractal_left_out_of_the
         smith = smith_visible_height_mean(fractal, elevation, fractal.slope_variance())
         assert abs(model - real) < 0.05, (elevation, real, model)
         assert smith - real > 0.1, (elevation, real, smith)
+
+
+def test_the_fbm_visible_slopes_lean_further_than_smiths_as_ray_casting_shows():
+    """Mean visible slope along the view of a fractal that slope_lean was not fitted to (gain 0.6, five
+    octaves; the fit used six octaves of gain 0.5), ray cast, against D_s with its shift scaled by
+    slope_lean, and against plain D_s, whose shift is short (measured: ray cast 1.019, 0.985, 0.918 at 4°,
+    8°, 15°; leaned 1.035, 0.981, 0.889; plain 0.935, 0.896, 0.830)."""
+    from prefilter.microsurface.fractal_masking import (
+        slope_lean,
+        smith_visible_slope_mean,
+        visible_slope_mean,
+    )
+
+    fractal = Fractal(octaves=5, amplitude=0.16, frequency=2.0, gain=0.6)
+    for elevation in (4.0, 8.0, 15.0):
+        real = visible_slope_mean(fractal, elevation, rays=4000, seed=5)
+        leaned = smith_visible_slope_mean(fractal, elevation, slope_lean(elevation))
+        plain = smith_visible_slope_mean(fractal, elevation)
+        assert abs(leaned - real) < 0.045, (elevation, real, leaned)
+        assert real - plain > 0.06, (elevation, real, plain)
+    assert slope_lean(40.0) == 1.0 and slope_lean(60.0) == 1.0
 
 
 def test_shader_masking_slopes_equal_the_numpy_twin_and_its_table():

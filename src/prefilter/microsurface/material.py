@@ -44,7 +44,7 @@ import numpy as np
 from prefilter.colormap.gaussian import parse_preconvolve_options, preconvolve
 from prefilter.colormap.table import ColourTable, parse_colour_table
 from prefilter.gl.uniforms import bind_samplers, set_uniforms
-from prefilter.microsurface.fractal_masking import masking_uniform
+from prefilter.microsurface.fractal_masking import SLOPE_LEAN, SLOPE_LEAN_FADE_DEG, masking_uniform
 from prefilter.microsurface.heightfield import LATTICE_FROM_OBJECT, MAX_OCTAVES, Fractal
 from prefilter.scene import Reader, register_material
 
@@ -113,6 +113,8 @@ class MicrosurfaceMaterial:
             defines["MS_TRANSFER"] = True
         defines["MS_GRID_X"], defines["MS_GRID_Y"] = SHADING_GRIDS[self.shading_samples]
         defines["MS_RELIEF_RAYS"] = self.relief_rays
+        defines["MS_SLOPE_LEAN"] = SLOPE_LEAN  # the fBm's visible slopes (fractal_masking.slope_lean)
+        defines["MS_SLOPE_LEAN_FADE"] = float(np.sin(np.radians(SLOPE_LEAN_FADE_DEG)))
         if self.environment is not None:
             defines["MS_IRRADIANCE"] = True
         return defines

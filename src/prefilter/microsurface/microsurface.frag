@@ -565,6 +565,14 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
         vec2 visMean;
         vec3 visCov;
         float area = ms_visibleSlopes(wo, s.slope, s.slopeCov, visMean, visCov);  // and the sample's share, below
+        // The fBm's visible slopes lean further towards the eye than D_s (Smith's) says: on it a fine facet on
+        // the far side of a coarse hill is masked by the hill more often. Ray cast, D_s's shift is short by
+        // 10 % at grazing views and right at 40° elevation (fractal_masking.py, slope_lean: its constants).
+        // Where the coarse hills are geometry their masking is rendered, so the lean is scaled by the share
+        // of the height variance that the statistics carry (1 far away).
+        float statisticalShare = ms_heightVariance / max(ms_heightVariance + ms_coarseHeightVariance, 1e-30);
+        float lean = statisticalShare * MS_SLOPE_LEAN * max(1.0 - wo.z / MS_SLOPE_LEAN_FADE, 0.0);
+        visMean += lean * (visMean - s.slope);
 #ifdef MS_TEXTURE_MAP
         c0 = ms_mapGaussian(u_textureGaussian, u_textureMap, s.r, textureVariance, u_textureWrap, u_textureRange);
 #endif
