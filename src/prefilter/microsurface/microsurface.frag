@@ -555,8 +555,11 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
         vec3 pk = ms_subpixelPoint(p0 + offset.x * gridXMacro + offset.y * gridYMacro, d, q, placementNormal,
                                    offset.x * gridX + offset.y * gridY);
         MsSurface s = ms_surfaceAt(ms_project(pk), frame);
+        vec3 lag = pk - q;
+        lag -= dot(lag, frame[2]) * frame[2];  // the sample's offset from q along the macro surface
 #else
         MsSurface s = ms_surfaceAt(p, frame);
+        vec3 lag = vec3(0.0);
 #endif
         float textureVariance = ms_textureVariance;
 #ifdef MS_TRANSFER
@@ -611,13 +614,7 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
             // marched point's altitude h at slope -μ dives μ²R/2 and meets the coarse relief (|h| < b)
             // unless μ < sqrt(2(h + b)/R).
             if (wi.z <= -horizonDip) continue;
-#if MS_SHADING_SAMPLES > 1
-            vec3 offsetK = pk - q;
-#else
-            vec3 offsetK = vec3(0.0);
-#endif
-            offsetK -= dot(offsetK, frame[2]) * frame[2];
-            float clearance = shadows[j].x + linearity * ((s.h - qHeight) - dot(shadows[j].yzw, offsetK));
+            float clearance = shadows[j].x + linearity * ((s.h - qHeight) - dot(shadows[j].yzw, lag));
             if (clearance <= 0.0) continue;
             vec3 lambert = ms_lambertMoments(visMean, visCov, wi);  // Lambert averaged over D_s, Cov(s, L)
             float cosine = lambert.x;
@@ -657,14 +654,8 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
         // correlation of the sample's coarse slope with q's, exp(-(c κ |δ|)² / 2) for the sample's offset δ
         // along the macro surface and the coarse RMS frequency κ: 1 on q's facet, the area for a sample
         // independent of q. c = MS_SLOPE_DECORRELATION; docs/microsurface.md has the measurements.
-#if MS_SHADING_SAMPLES > 1
-        vec3 lag = pk - q;
-        lag -= dot(lag, frame[2]) * frame[2];
         float decorrelation = MS_SLOPE_DECORRELATION * ms_coarseFrequency * length(lag);
-        float correlation = exp(-0.5 * decorrelation * decorrelation);
-#else
-        float correlation = 1.0;
-#endif
+        float correlation = exp(-0.5 * decorrelation * decorrelation);  // 1 with one sample: its weight cancels
         // (every sample's facets facing away from the eye, area 0: a near miss of the march; their plain mean)
         float weight = pow(max(area, 1e-30), 1.0 - correlation);
         radiance += weight * sampleRadiance;
