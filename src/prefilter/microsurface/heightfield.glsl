@@ -54,9 +54,23 @@ float ms_weight[MS_WEIGHT_SLOTS];
 // γ_k of the height octaves (0 for the texture's slots): the share of an octave's gradient whose variation
 // over the footprint is real (noise_stats.py); Σ γ_k ∇h_k is the height's linear part over the footprint
 float ms_linearWeight[MS_WEIGHT_SLOTS];
+// The weight of an octave's slope in the slopes that shade surface-filter's samples. Where the statistics
+// carry the pixel it is the rendered surface's β₁, the footprint's mean correlation with its centre. Where
+// the relief stands out of the pixel the gate gives the rendered surface β (ms_meanFraction): that is about
+// what the pixel sees of the relief (silhouettes, far peaks, shadows), while a sample's slope colours and
+// light are a prediction of the slopes over its footprint from its centre, which β₁ makes. The gate lifts
+// the slopes' weight only MS_SLOPE_WEIGHT_GATE of the way from β₁ to β: 1 gives them the rendered surface's
+// weights (until 2026-12-05); 0, β₁ throughout, darkened the heights terrain's near field (lower half
+// -0.0015 -> -0.0033 in mean luminance at 256 px); 0.5 was best of 0, 0.25, 0.5 and 1 on the four terrains
+// (a fit; microsurface.frag, MsSurface, has the figures). 0 for the texture's slots.
+float ms_slopeWeight[MS_WEIGHT_SLOTS];
+#ifndef MS_SLOPE_WEIGHT_GATE
+#define MS_SLOPE_WEIGHT_GATE 0.5
+#endif
 float ms_heightVariance;   // σ_h² of the unresolved octaves
 float ms_heightResidual;   // what is left of it beyond the expected variance of their linear part
 float ms_slopeVariance;    // per tangent axis: Σ = ms_slopeVariance · I
+float ms_shadingSlopeVariance;  // the same about the slopes of weights ms_slopeWeight (the rest of each octave's)
 float ms_coarseHeightVariance;  // the same of the coarse (rendered) surface: Σ w² a² Var n
 float ms_coarseSlopeVariance;
 float ms_coarseFrequency;  // sqrt(Σ w² a² f⁴ / Σ w² a² f²): how fast the coarse surface's slopes change
@@ -113,6 +127,7 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
     ms_heightVariance = 0.0;
     ms_heightResidual = 0.0;
     ms_slopeVariance = 0.0;
+    ms_shadingSlopeVariance = 0.0;
     ms_coarseHeightVariance = 0.0;
     ms_coarseSlopeVariance = 0.0;
     ms_maskingSlopeVariance = 0.0;
@@ -128,6 +143,7 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
         bool height = i < MS_MAX_OCTAVES;
         int k = height ? i : i - MS_MAX_OCTAVES;
         ms_linearWeight[i] = 0.0;
+        ms_slopeWeight[i] = 0.0;
         if (k >= (height ? ms_heightOctaves : ms_textureOctaves)) {
             ms_weight[i] = 0.0;
             continue;
@@ -146,6 +162,9 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
             float linear = gamma * gamma * af.x * af.x * MS_GRADIENT_VARIANCE * af.y * af.y * footprint2 / 12.0;
             ms_heightResidual += max(residual * MS_NOISE_VARIANCE - linear, 0.0);
             ms_slopeVariance += residual * af.y * af.y * MS_GRADIENT_VARIANCE;
+            float slopeWeight = full ? 1.0 : mix(fractions.y, fractions.x, MS_SLOPE_WEIGHT_GATE * ms_reliefGate);
+            ms_slopeWeight[i] = slopeWeight;
+            ms_shadingSlopeVariance += (1.0 - slopeWeight * slopeWeight) * af.x * af.x * af.y * af.y * MS_GRADIENT_VARIANCE;
             ms_coarseHeightVariance += w * w * af.x * af.x * MS_NOISE_VARIANCE;
             ms_coarseSlopeVariance += w * w * af.x * af.x * af.y * af.y * MS_GRADIENT_VARIANCE;
             curvatureMoment += w * w * af.x * af.x * af.y * af.y * af.y * af.y * MS_GRADIENT_VARIANCE;
@@ -213,18 +232,21 @@ vec4 ms_octaveGrad(vec3 lp, int i) {
     return vec4(a * ms_octave[i].y * (n.xyz * ms_latticeFromObject), a * n.w);
 }
 
-// (∇ in object space, value) of the same sum, and in `linear` Σ_k γ_k ∇(a_k n_k) (ms_linearWeight): the
-// gradient whose variation over the footprint of the last split is its linear part.
-vec4 ms_fractalGradLinear(vec3 p, int first, int count, out vec3 linear) {
+// (∇ in object space, value) of the same sum, in `linear` Σ_k γ_k ∇(a_k n_k) (ms_linearWeight): the
+// gradient whose variation over the footprint of the last split is its linear part, and in `shading`
+// Σ_k ms_slopeWeight[k] ∇(a_k n_k): the slopes that shade a surface-filter sample.
+vec4 ms_fractalGradLinear(vec3 p, int first, int count, out vec3 linear, out vec3 shading) {
     vec3 lp = ms_latticeFromObject * p;
     vec4 result = vec4(0.0);
     linear = vec3(0.0);
+    shading = vec3(0.0);
     for (int k = 0; k < MS_MAX_OCTAVES; ++k) {
         int i = first + k;
         if (ms_weight[i] > 0.0) {
             vec4 octave = ms_octaveGrad(lp, i);
             result += ms_weight[i] * octave;
             linear += ms_linearWeight[i] * octave.xyz;
+            shading += ms_slopeWeight[i] * octave.xyz;
         }
         if (k + 1 >= count) break;  // at the end of the body (MS_MAX_OCTAVES)
     }
@@ -232,8 +254,8 @@ vec4 ms_fractalGradLinear(vec3 p, int first, int count, out vec3 linear) {
 }
 
 vec4 ms_fractalGrad(vec3 p, int first, int count) {
-    vec3 linear;
-    return ms_fractalGradLinear(p, first, count, linear);
+    vec3 linear, shading;
+    return ms_fractalGradLinear(p, first, count, linear, shading);
 }
 
 // The slope (macro tangent frame) at p of the coarse surface that a footprint (dpdx, dpdy) keeps: the height
