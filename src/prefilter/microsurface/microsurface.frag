@@ -160,8 +160,8 @@ vec2 ms_microHeights(float lt, float lc, float sigmaT, float sigmaC) {
 // fractal r. With a transfer function h = g(f): E[g] and the slope moments of §7, and g's moments.
 // In surface-filter (no transfer function) the slopes that shade are the octaves' of weights
 // ms_slopeWeight (heightfield.glsl: between β₁ and the rendered surface's β where the relief stands out of
-// the pixel), about which the rest of their variance spreads; residualCov stays the rendered surface's,
-// which Smith's Λ adds to its slopes. Measured (256 px, 64-spp references, surface-filter FLIP with the
+// the pixel), about which the rest of their variance spreads. Smith's Λ keeps the rendered surface's
+// residual: ms_shade builds its masking from the unresolved statistics, not from these. Measured (256 px, 64-spp references, surface-filter FLIP with the
 // rendered surface's slopes -> MS_SLOPE_WEIGHT_GATE 0.5 and 0): micro-irradiance-terrain 0.0410 -> 0.0387
 // and 0.0386, micro-slopes-terrain (9 samples) 0.0864 -> 0.0841 and 0.0850, micro-heights-terrain 0.0806 ->
 // 0.0801 and 0.0814, micro-heights-grazing 0.0516 -> 0.0513 and 0.0519; the spheres within 0.0001, their
@@ -177,30 +177,30 @@ struct MsSurface {
     vec4 transferMoments;  // (E[h], E[h²], E[h'], E[h'²]) with MS_TRANSFER, else (0, 0, 1, 1)
     vec3 linear;           // the gradient (object space) of the height's linear part over the footprint
     float heightResidual;  // heightVariance less the expected variance of that linear part
-    vec3 residualCov;      // the slope covariance that the rendered surface leaves to the statistics
 };
 
 MsSurface ms_surfaceAt(vec3 p, mat3 frame) {
     MsSurface s;
     vec3 shading;
     vec4 fg = ms_fractalGradLinear(p, 0, ms_heightOctaves, s.linear, shading);
+#if defined(MODE_SURFACE_FILTER) && !defined(MS_TRANSFER)
+    vec3 grad = shading;
+    float slopeVariance = ms_shadingSlopeVariance;
+#else
+    vec3 grad = fg.xyz;
+    float slopeVariance = ms_slopeVariance;
+#endif
     s.h = fg.w;
-    s.slope = vec2(dot(fg.xyz, frame[0]), dot(fg.xyz, frame[1]));
+    s.slope = vec2(dot(grad, frame[0]), dot(grad, frame[1]));
     s.heightVariance = ms_heightVariance;
     s.heightResidual = ms_heightResidual;
-    s.slopeCov = vec3(ms_slopeVariance, 0.0, ms_slopeVariance);
-    s.residualCov = s.slopeCov;
+    s.slopeCov = vec3(slopeVariance, 0.0, slopeVariance);
     s.transferMoments = vec4(0.0, 0.0, 1.0, 1.0);
-#if defined(MODE_SURFACE_FILTER) && !defined(MS_TRANSFER)
-    s.slope = vec2(dot(shading, frame[0]), dot(shading, frame[1]));
-    s.slopeCov = vec3(ms_shadingSlopeVariance, 0.0, ms_shadingSlopeVariance);
-#endif
 #ifdef MS_TRANSFER
     s.transferMoments = ms_transfer(fg.w, ms_transferSigma);
     float hMean;
     vec2 slopeMean;
     ms_transferStats(s.transferMoments, s.slope, s.slopeCov, hMean, s.heightVariance, slopeMean, s.slopeCov);
-    s.residualCov = s.slopeCov;
     s.h = hMean;
     s.slope = slopeMean;
     s.linear = vec3(0.0);  // g(f) is not linear: its heights stay a Gaussian of all their variance
@@ -259,7 +259,7 @@ MsMasking ms_masking(vec3 wo, MsSurface s, MsFootprint f) {
     vec3 coarseCov = f.marchedCov * gain.y;
     float coarseVariance = f.marchedVariance * gain.x * gain.x;
     // the micro part of the whole footprint: the sample's unresolved part plus what the samples resolve
-    vec3 microCov = s.residualCov + gain.y * f.sampledSlopeVariance * vec3(1.0, 0.0, 1.0);
+    vec3 microCov = s.slopeCov + gain.y * f.sampledSlopeVariance * vec3(1.0, 0.0, 1.0);
     float microVariance = s.heightVariance + gain.x * gain.x * f.sampledHeightVariance;
     MsMasking m;
     m.totalCov = (microCov + coarseCov) * f.maskingScale;
@@ -519,9 +519,8 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     footprint.sampledSlopeVariance = footprintSlopeVariance - ms_slopeVariance;
 #ifndef MS_TRANSFER
     // The same for every sample: their unresolved variances are the 1/N footprint's, E[h'] = E[h'²] = 1.
-    vec3 residualCov = vec3(ms_slopeVariance, 0.0, ms_slopeVariance);
-    MsSurface unresolved = MsSurface(0.0, vec2(0.0), ms_heightVariance, residualCov, 0.0, vec4(0.0, 0.0, 1.0, 1.0),
-                                     vec3(0.0), ms_heightResidual, residualCov);
+    MsSurface unresolved = MsSurface(0.0, vec2(0.0), ms_heightVariance, vec3(ms_slopeVariance, 0.0, ms_slopeVariance),
+                                     0.0, vec4(0.0, 0.0, 1.0, 1.0), vec3(0.0), ms_heightResidual);
     MsMasking m = ms_masking(wo, unresolved, footprint);
     MsLight lights[SH_LIGHTS];  // each light's share under m, the same for every sample
 #endif
