@@ -423,6 +423,17 @@ vec3 ms_slab(vec3 o, vec3 d, float bound) {
 // sliver of relief thinner than it. 0 (the point mode, the reference): the relief-relative floor alone.
 float ms_shadowStep = 0.0;
 
+// The least step of primary rays (beyond the paper; set by the modes that shade a pixel from one march:
+// naive, texture-filter, surface-filter), as (a, b) for a least step a + b t in units of t (distance
+// along the ray): a pixel shows the relief over its footprint, so its ray need not find a crossing finer
+// than a share of the footprint's length along the ray. Near the surface a ray that skims the relief
+// shrinks its steps with the gap, to 2e-4 of the relief's height at least, and at the terrains' low
+// elevations that approach was most of the march (micro-irradiance-terrain: 66 steps a pixel, and a
+// second sub-ray starting half a pixel above the first one's hit took 31 more). A crossing is still
+// caught and refined; what a step can jump is a sliver of relief thinner than it. (0, 0): the point mode
+// and the reference, every crossing to the relief-relative floor.
+vec2 ms_primaryStep = vec2(0.0);
+
 // A march step along dir (any length) from x where the gap is `gap`: the gap over the largest rate at
 // which it can shrink per unit of t, |dir·n| + slopeBound |dir_tangent|.
 float ms_marchStep(vec3 x, vec3 dir, float gap, float minStep) {
@@ -443,8 +454,10 @@ vec4 ms_narrow(vec4 bracket, float t, float g) {
 
 // First t in [t0, t1] = slab.xy where the ray o + t d (|d| = 1) meets the surface, or -1. Steps are the gap over
 // the largest rate at which the gap can shrink, |d·n| + slopeBound |d_tangent|; a crossing is refined by
-// five secant steps. After maxSteps without a crossing a primary ray returns its current t (just above
-// the surface: a near miss rather than a hole) and a shadow ray -1 (unoccluded).
+// five secant steps, and the last secant estimate is the hit (it was the bracket's far end, which regula
+// falsi can leave where the crossing step landed: up to a least step past the crossing). After maxSteps
+// without a crossing a primary ray returns its current t (just above the surface: a near miss rather than
+// a hole) and a shadow ray -1 (unoccluded).
 // Every iteration evaluates the relief once, a march step or a secant step: llvmpipe runs both sides of a
 // branch, so five secant steps nested in the step loop had cost five evaluations at every step (naive
 // took 1.4x its time on micro-heights-terrain and 1.6x on micro-heights-sphere; the same hits).
@@ -452,6 +465,7 @@ float ms_march(vec3 o, vec3 d, vec3 slab, int maxSteps, bool primary) {
     float t1 = slab.y;
     float minStep = 2e-4 * max(ms_heightBound, 1e-6);
     if (!primary) minStep = max(minStep, ms_shadowStep);
+    vec2 least = primary ? ms_primaryStep : vec2(0.0);
     float t = slab.x;
     float gap = ms_gapBound(o + t * d);
     if (gap <= 0.0) return t;
@@ -459,13 +473,14 @@ float ms_march(vec3 o, vec3 d, vec3 slab, int maxSteps, bool primary) {
     int refined = 0;
     vec4 bracket = vec4(0.0);
     for (int i = 0; i < maxSteps + 5; ++i) {
-        float te = phase == 0 ? min(t + ms_marchStep(o + t * d, d, gap, minStep), t1) : ms_secant(bracket);
+        float te = phase == 0 ? min(t + ms_marchStep(o + t * d, d, gap, max(minStep, least.x + least.y * t)), t1)
+                              : ms_secant(bracket);
         ms_steps += phase == 0 ? 1 : 0;  // march steps, as the diagnostic counts them (not the refinement)
         float g = ms_gapBound(o + te * d);
         if (phase == 1) {
             bracket = ms_narrow(bracket, te, g);
             refined += 1;
-            if (refined >= 5) return bracket.z;  // here, not at the top of the next pass (MS_MAX_OCTAVES)
+            if (refined >= 5) return ms_secant(bracket);  // here, not at the top of the next pass (MS_MAX_OCTAVES)
         } else if (g <= 0.0) {
             phase = 1;
             bracket = vec4(t, gap, te, g);
@@ -476,7 +491,7 @@ float ms_march(vec3 o, vec3 d, vec3 slab, int maxSteps, bool primary) {
             gap = g;
         }
     }
-    return phase == 1 ? bracket.z : (primary ? t : -1.0);
+    return phase == 1 ? ms_secant(bracket) : (primary ? t : -1.0);
 }
 
 // --- A column of sub-pixel rays (beyond the paper; surface-filter) ------------------------------------
@@ -535,7 +550,9 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 offsets[MS_RELIEF_RAYS], int c
         }
         vec3 oj = o + offsets[j].x * up;
         vec3 dj = d + offsets[j].y * up;
-        float te = phase == 0 ? min(t + ms_marchStep(oj + t * dj, dj, gap, minStep / length(dj)), exits[j])
+        float lj = length(dj);
+        float least = max(minStep, ms_primaryStep.x + ms_primaryStep.y * t * lj) / lj;
+        float te = phase == 0 ? min(t + ms_marchStep(oj + t * dj, dj, gap, least), exits[j])
                               : (phase == 1 ? ms_secant(bracket) : t);
         ms_steps += phase == 0 ? 1 : 0;
         float g = ms_gapBound(oj + te * dj);  // exact where <= 0
@@ -543,7 +560,7 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 offsets[MS_RELIEF_RAYS], int c
             bracket = ms_narrow(bracket, te, g);
             refined += 1;
             if (refined >= (j == 0 ? 5 : 2)) {
-                hits[j] = bracket.z;
+                hits[j] = ms_secant(bracket);
                 phase = 3;
             }
         } else {
@@ -567,7 +584,7 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 offsets[MS_RELIEF_RAYS], int c
         if (phase == 3 && j + 1 >= count) break;  // at the end of the body (MS_MAX_OCTAVES)
     }
     for (int k = 0; k < MS_RELIEF_RAYS; ++k) {  // out of steps: a near miss rather than a hole
-        if (k >= j && k < count && !(k == j && phase == 3)) hits[k] = phase == 1 ? bracket.z : t;
+        if (k >= j && k < count && !(k == j && phase == 3)) hits[k] = phase == 1 ? ms_secant(bracket) : t;
     }
 }
 

@@ -65,6 +65,14 @@ const mat3 MS_ENV_FROM_WORLD = mat3(vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), ve
 #ifndef MS_RELIEF_CLOSING
 #define MS_RELIEF_CLOSING 0.2
 #endif
+// The primary rays' least step in the modes other than point, a share of the pixel's footprint along the
+// ray (main(); heightfield.glsl, ms_primaryStep), and the least rate of descent that sizes the footprint.
+#ifndef MS_PRIMARY_STEP
+#define MS_PRIMARY_STEP 0.125
+#endif
+#ifndef MS_PRIMARY_STEP_FLOOR
+#define MS_PRIMARY_STEP_FLOOR 0.05
+#endif
 // How fast a shading sample's coarse slope decorrelates from the marched point's, in units of the coarse
 // surface's RMS frequency ms_coarseFrequency times the sample's distance from it (ms_shade's weights).
 #ifndef MS_SLOPE_DECORRELATION
@@ -701,12 +709,7 @@ void main() {
     vec3 o = u_eyeObject.w > 0.5 ? u_eyeObject.xyz : p0 - d * (4.0 * (ms_radius + ms_heightBound) + 1.0);
     vec3 slab = ms_slab(o, d, ms_heightBound);
     if (slab.y < slab.x) discard;
-#ifdef MODE_SURFACE_FILTER
-    // Where the relief stands out of the pixel (ms_reliefGate >= 1/2), MS_RELIEF_RAYS sub-rays spread over the
-    // pixel's extent along the macro normal are marched as one column (ms_marchColumn) and shaded each, with
-    // the shading samples closed up; their radiances are averaged. Elsewhere the column is the centre ray,
-    // and its samples close up by MS_RELIEF_CLOSING of the gate: the sub-pixel rays' hits on relief that
-    // stands out of the pixel still spread over its facets, if less than over the coarse plane.
+#if !defined(MODE_POINT) && !defined(MODE_MARCH_STEPS)
     vec3 up = ms_macroNormal(p0);
     vec3 upAcross = up - dot(up, d) * d;  // what an offset along up moves the ray across itself
     float across2 = max(dot(upAcross, upAcross), 1e-6);
@@ -716,6 +719,18 @@ void main() {
     // per unit distance) or of the origin (orthographic)
     float extent = (abs(dot(ex, upAcross)) + abs(dot(ey, upAcross))) / across2;
     if (perspective) extent /= length(p0 - o);
+    // The primary rays' least step (heightfield.glsl, ms_primaryStep): MS_PRIMARY_STEP of the pixel's
+    // footprint along the ray, its extent along up over the ray's rate of descent along up (at most
+    // 1 / MS_PRIMARY_STEP_FLOOR times the extent, at grazing views and silhouettes).
+    ms_primaryStep = MS_PRIMARY_STEP * (perspective ? vec2(0.0, extent) : vec2(extent, 0.0))
+                   / max(abs(dot(d, up)), MS_PRIMARY_STEP_FLOOR);
+#endif
+#ifdef MODE_SURFACE_FILTER
+    // Where the relief stands out of the pixel (ms_reliefGate >= 1/2), MS_RELIEF_RAYS sub-rays spread over the
+    // pixel's extent along the macro normal are marched as one column (ms_marchColumn) and shaded each, with
+    // the shading samples closed up; their radiances are averaged. Elsewhere the column is the centre ray,
+    // and its samples close up by MS_RELIEF_CLOSING of the gate: the sub-pixel rays' hits on relief that
+    // stands out of the pixel still spread over its facets, if less than over the coarse plane.
     int rays = ms_reliefGate >= 0.5 ? MS_RELIEF_RAYS : 1;
     vec2 offsets[MS_RELIEF_RAYS];  // (origin, direction) offsets along up, ascending
     for (int k = 0; k < MS_RELIEF_RAYS; ++k) {
