@@ -320,8 +320,8 @@ def test_a_footprint_least_step_finds_the_first_hit_to_within_that_step_in_fewer
     rate = 0.125 * np.radians(50.0) / 256 / np.sin(np.radians(elevation))
     prelude = (
         "vec2 marchTest(vec3 o, vec3 d, vec2 least) { ms_setWeights(vec3(0.0), vec3(0.0), true);"
-        " ms_primaryStep = least; ms_steps = 0;"
-        " vec3 s = ms_slab(o, d, ms_heightBound); return vec2(ms_march(o, d, s, 768, true), float(ms_steps)); }"
+        " ms_primaryStep = least; ms_steps = 0; vec3 s = ms_slab(o, d, ms_heightBound);"
+        " return vec2(ms_march(o, d, s, 768, true), float(ms_steps)); }"
     )
     exact, stepped = (
         glsl_eval(
