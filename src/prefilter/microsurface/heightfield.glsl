@@ -434,6 +434,11 @@ float ms_shadowStep = 0.0;
 // and the reference, every crossing to the relief-relative floor.
 vec2 ms_primaryStep = vec2(0.0);
 
+// A primary ray's least step at `distance` along it: ms_primaryStep's, at least minStep.
+float ms_primaryLeastStep(float minStep, float distance) {
+    return max(minStep, ms_primaryStep.x + ms_primaryStep.y * distance);
+}
+
 // A march step along dir (any length) from x where the gap is `gap`: the gap over the largest rate at
 // which it can shrink per unit of t, |dir·n| + slopeBound |dir_tangent|.
 float ms_marchStep(vec3 x, vec3 dir, float gap, float minStep) {
@@ -465,7 +470,6 @@ float ms_march(vec3 o, vec3 d, vec3 slab, int maxSteps, bool primary) {
     float t1 = slab.y;
     float minStep = 2e-4 * max(ms_heightBound, 1e-6);
     if (!primary) minStep = max(minStep, ms_shadowStep);
-    vec2 least = primary ? ms_primaryStep : vec2(0.0);
     float t = slab.x;
     float gap = ms_gapBound(o + t * d);
     if (gap <= 0.0) return t;
@@ -473,8 +477,8 @@ float ms_march(vec3 o, vec3 d, vec3 slab, int maxSteps, bool primary) {
     int refined = 0;
     vec4 bracket = vec4(0.0);
     for (int i = 0; i < maxSteps + 5; ++i) {
-        float te = phase == 0 ? min(t + ms_marchStep(o + t * d, d, gap, max(minStep, least.x + least.y * t)), t1)
-                              : ms_secant(bracket);
+        float least = primary ? ms_primaryLeastStep(minStep, t) : minStep;
+        float te = phase == 0 ? min(t + ms_marchStep(o + t * d, d, gap, least), t1) : ms_secant(bracket);
         ms_steps += phase == 0 ? 1 : 0;  // march steps, as the diagnostic counts them (not the refinement)
         float g = ms_gapBound(o + te * d);
         if (phase == 1) {
@@ -551,7 +555,7 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 offsets[MS_RELIEF_RAYS], int c
         vec3 oj = o + offsets[j].x * up;
         vec3 dj = d + offsets[j].y * up;
         float lj = length(dj);
-        float least = max(minStep, ms_primaryStep.x + ms_primaryStep.y * t * lj) / lj;
+        float least = ms_primaryLeastStep(minStep, t * lj) / lj;
         float te = phase == 0 ? min(t + ms_marchStep(oj + t * dj, dj, gap, least), exits[j])
                               : (phase == 1 ? ms_secant(bracket) : t);
         ms_steps += phase == 0 ? 1 : 0;
