@@ -425,6 +425,59 @@ def test_shadow_profile_predicts_the_shadow_rays_of_nearby_points(elevation):
     assert wrong <= 0.75 * wrong_centre, (wrong, wrong_centre)
 
 
+PROFILE_GROWTH_PRELUDE = """
+vec3 onSurface(vec3 p) { return vec3(p.x, ms_surfaceHeight(vec3(p.x, 0.0, p.z)), p.z); }
+vec4 growthTest(vec3 c, vec3 delta, vec3 l) {
+    ms_setWeights(vec3(0.0), vec3(0.0), true);
+    float spacing = length(delta);
+    vec3 q = onSurface(c);
+    vec3 qk = onSurface(c + delta);
+    ms_shadowStep = 1.0 / 64.0;
+    ms_steps = 0;
+    vec4 profile = ms_shadowProfile(q, l, 768, ms_slopeBound * spacing, spacing / length(l.xz));
+    float steps = float(ms_steps);
+    float clearance = profile.x + (qk.y - q.y) - dot(profile.yzw, delta);
+    ms_shadowStep = 0.0;
+    return vec4(clearance > 0.0 ? 1.0 : 0.0, ms_shadow(qk, l, 768), steps, ms_shadow(q, l, 768));
+}
+"""
+
+
+@pytest.mark.parametrize("elevation", [5.0, 10.0])
+def test_a_blocked_profile_growing_its_steps_keeps_the_nearby_shadows_in_fewer_steps(elevation):
+    """ms_shadowProfile's least step grows by MS_PROFILE_STEP_GROWTH a step once the ray from q is
+    blocked. Against the oracle of an exact shadow ray from each nearby point q + δ, with the filtered
+    modes' pixel-sized least step (1/64, a quarter of the finest cell): growing steps (1.3) get at most
+    1.2 % more points wrong than constant ones (1.0) and stay well below the centre's own shadow's
+    errors, in under 0.7x the steps at grazing light (measured: 4.3 -> 4.7 % and 5.6 -> 6.1 % wrong at 5
+    and 10 degrees, the centre's own shadow 9.0 and 11.2 %; 0.43x and 0.60x the steps)."""
+    n = 3000
+    c, light = _shadow_points(n, elevation)
+    azimuth = RNG.uniform(0, 2 * np.pi, n)
+    radius = 0.03 * np.sqrt(RNG.uniform(0, 1, n))
+    delta = np.stack([radius * np.cos(azimuth), np.zeros(n), radius * np.sin(azimuth)], 1)
+    inputs = {"c": c, "delta": delta, "l": light}
+    results = {}
+    for growth in (1.0, 1.3):
+        got = glsl_eval(
+            "growthTest(c, delta, l)",
+            inputs,
+            4,
+            includes=INCLUDES,
+            uniforms=_uniforms(),
+            prelude=PROFILE_GROWTH_PRELUDE,
+            defines={"MS_PROFILE_STEP_GROWTH": growth},
+        )
+        predicted, truth, steps, centre = got.T
+        assert 0.2 < 1 - truth.mean() < 0.9  # grazing light: much shadow, some light
+        results[growth] = ((predicted != truth).mean(), steps.mean(), (centre != truth).mean())
+    wrong_constant, steps_constant, wrong_centre = results[1.0]
+    wrong_growing, steps_growing, _ = results[1.3]
+    assert wrong_growing <= wrong_constant + 0.012, results
+    assert wrong_growing <= 0.75 * wrong_centre, results
+    assert steps_growing < 0.7 * steps_constant, results
+
+
 SHADOW_STEP_PRELUDE = """
 vec4 shadowStepTest(vec3 c, vec3 l, float leastStep) {
     ms_setWeights(vec3(0.0), vec3(0.0), true);
