@@ -384,8 +384,10 @@ def _shadow_points(n: int, elevation: float) -> tuple[np.ndarray, np.ndarray]:
     return c, np.stack([cos_e * np.cos(azimuth), np.full(n, sin_e), cos_e * np.sin(azimuth)], 1)
 
 
-def _eval_shadows(expression: str, inputs: dict, prelude: str) -> np.ndarray:
-    return glsl_eval(expression, inputs, 4, includes=INCLUDES, uniforms=_uniforms(), prelude=prelude)
+def _eval_shadows(expression: str, inputs: dict, prelude: str, defines: dict | None = None) -> np.ndarray:
+    return glsl_eval(
+        expression, inputs, 4, includes=INCLUDES, uniforms=_uniforms(), prelude=prelude, defines=defines
+    )
 
 
 # The surface point over c, and whether the point qk = q + δ of the surface is lit as a shading sample's
@@ -472,14 +474,8 @@ def test_a_blocked_profile_growing_its_steps_keeps_the_nearby_shadows_in_fewer_s
     inputs = {"c": c, "delta": _nearby_offsets(n), "l": light}
     results = {}
     for growth in (1.0, 1.3):
-        got = glsl_eval(
-            "growthTest(c, delta, l)",
-            inputs,
-            4,
-            includes=INCLUDES,
-            uniforms=_uniforms(),
-            prelude=PROFILE_GROWTH_PRELUDE,
-            defines={"MS_PROFILE_STEP_GROWTH": growth},
+        got = _eval_shadows(
+            "growthTest(c, delta, l)", inputs, PROFILE_GROWTH_PRELUDE, {"MS_PROFILE_STEP_GROWTH": growth}
         )
         predicted, truth, steps, centre = got.T
         assert 0.2 < 1 - truth.mean() < 0.9  # grazing light: much shadow, some light
