@@ -331,7 +331,8 @@ def test_compare_adds_brdf_slices_against_the_direct_reference_for_gratings(tmp_
     from prefilter.compare import compare_scene, write_comparison
 
     scene = _scene(
-        'coherence_um = 3.0\nfast_table = [64, 64, 16]\n[object.material.generator]\nname = "blazed"'
+        'coherence_um = 3.0\nfast_table = [64, 64, 16]\n[object.material.generator]\nname = "blazed"\n'
+        "pixel = 0.1"  # the coarsest pixel that resolves the visible: half the direct reference's window sum
     )
     out = write_comparison(compare_scene(scene, spp=4, frames=1), tmp_path / "cmp")
     report = (out / "report.md").read_text()

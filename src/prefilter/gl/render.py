@@ -315,30 +315,32 @@ class Renderer:
     ) -> dict[str, float]:
         """Median wall-clock time of one frame per mode, in milliseconds.
 
-        Modes are measured round-robin (`frames` rounds; each round draws every mode `batch` times and
-        ends with glFinish), so that drifts of the machine's load hit every mode alike. The batch grows
-        so that each sample lasts at least MIN_SAMPLE_MS: frames of a millisecond (the 256² zone plate)
-        varied by 10 % between two calls with a batch of 3. GL timer queries are not used: on llvmpipe
-        they return the time to queue commands, not to rasterise them (measured: 0.02 ms for a frame that
-        takes 3 ms of wall time).
+        Modes are measured round-robin (`frames` rounds; each round draws every mode its batch of frames and
+        ends each batch with glFinish), so that drifts of the machine's load hit every mode alike. A mode's
+        batch (at least `batch`) grows so that its sample lasts at least MIN_SAMPLE_MS: frames of a
+        millisecond (the 256² zone plate) varied by 10 % between two calls with a batch of 3. Each mode has
+        its own batch: one set by the fastest mode made a slow mode of a tiny image draw MAX_BATCH frames
+        a sample (the diffraction Taylor path at 48 x 32: 35 s of `compare`'s timing). GL timer queries are
+        not used: on llvmpipe they return the time to queue commands, not to rasterise them (measured:
+        0.02 ms for a frame that takes 3 ms of wall time).
         """
-        fastest = float("inf")
+        batches: dict[str, int] = {}
         for mode in modes:  # compile and warm up, then one timed frame each
             self.draw(mode, t)
             self.ctx.finish()
             start = time.perf_counter()
             self.draw(mode, t)
             self.ctx.finish()
-            fastest = min(fastest, 1000.0 * (time.perf_counter() - start))
-        batch = max(batch, min(MAX_BATCH, math.ceil(MIN_SAMPLE_MS / max(fastest, 1e-3))))
+            first = 1000.0 * (time.perf_counter() - start)
+            batches[mode] = max(batch, min(MAX_BATCH, math.ceil(MIN_SAMPLE_MS / max(first, 1e-3))))
         samples: dict[str, list[float]] = {mode: [] for mode in modes}
         for _ in range(frames):
             for mode in modes:
                 start = time.perf_counter()
-                for _ in range(batch):
+                for _ in range(batches[mode]):
                     self.draw(mode, t)
                 self.ctx.finish()
-                samples[mode].append(1000.0 * (time.perf_counter() - start) / batch)
+                samples[mode].append(1000.0 * (time.perf_counter() - start) / batches[mode])
         return {mode: statistics.median(values) for mode, values in samples.items()}
 
     def time_reference(self, spp: int, t: float = 0.0) -> float:
