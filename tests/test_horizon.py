@@ -47,11 +47,31 @@ def test_spike_casts_height_over_distance_on_its_neighbours():
     np.testing.assert_allclose(horizon_slopes(h, d_max), want, atol=1e-12)
 
 
-def test_horizon_is_fast_enough():
+def _horizon_slopes_per_texel(h: np.ndarray, d_max: int, texels) -> np.ndarray:
+    """The four horizon slopes of each (i, j) in `texels` by plain Python loops over the distances."""
+    rows, cols = h.shape
+    out = np.empty((len(texels), 4))
+    for k, (i, j) in enumerate(texels):
+        for channel, (di, dj) in enumerate(((0, 1), (0, -1), (1, 0), (-1, 0))):
+            out[k, channel] = max(
+                (h[(i + di * d) % rows, (j + dj * d) % cols] - h[i, j]) / d for d in range(1, d_max + 1)
+            )
+    return out
+
+
+def test_horizon_slopes_are_vectorised():
+    """Against a per-texel Python loop timed in the same run (a ratio, not an absolute time): the whole
+    field costs less per texel than a tenth of the loop's (measured: about 1/190), and the slopes agree."""
     h = np.random.default_rng(0).random((256, 256))
+    texels = [(i, j) for i in range(0, 256, 32) for j in range(0, 256, 32)]  # 64 texels
     start = time.perf_counter()
-    horizon_slopes(h, 64)
-    assert time.perf_counter() - start < 1.5
+    looped = _horizon_slopes_per_texel(h, 64, texels)
+    loop_per_texel = (time.perf_counter() - start) / len(texels)
+    start = time.perf_counter()
+    whole = horizon_slopes(h, 64)
+    per_texel = (time.perf_counter() - start) / h.size
+    np.testing.assert_allclose(whole[tuple(np.array(texels).T)], looped, atol=1e-12)
+    assert per_texel < 0.1 * loop_per_texel, (per_texel, loop_per_texel)
 
 
 def smooth_surface(n=32):
