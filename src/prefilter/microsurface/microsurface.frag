@@ -171,8 +171,9 @@ vec2 ms_microHeights(float lt, float lc, float sigmaT, float sigmaC) {
 // the pixel), about which the rest of their variance spreads. Smith's Λ keeps the rendered surface's
 // residual: ms_shade builds its masking from the unresolved statistics, not from these. Measured (256 px,
 // 64-spp references, surface-filter FLIP with the rendered surface's slopes -> MS_SLOPE_WEIGHT_GATE 0.5
-// and 0): micro-irradiance-terrain 0.0410 -> 0.0387 and 0.0386, micro-slopes-terrain (9 samples) 0.0864 -> 0.0841 and 0.0850, micro-heights-terrain 0.0806 ->
-// 0.0801 and 0.0814, micro-heights-grazing 0.0516 -> 0.0513 and 0.0519; the spheres within 0.0001, their
+// and 0): micro-irradiance-terrain 0.0410 -> 0.0387 and 0.0386, micro-slopes-terrain (9 samples) 0.0864
+// -> 0.0841 and 0.0850, micro-heights-terrain 0.0806 -> 0.0801 and 0.0814, micro-heights-grazing 0.0516
+// -> 0.0513 and 0.0519; the spheres within 0.0001, their
 // relief gate about 0. texture-filter keeps the rendered surface's slopes: with β₁'s it went 0.140 -> 0.165
 // on the irradiance terrain and 0.142 -> 0.158 on the heights terrain. docs/microsurface.md, "The slopes
 // that shade".
