@@ -163,20 +163,18 @@ vec2 ms_microHeights(float lt, float lc, float sigmaT, float sigmaC) {
     return vec2(t.x * sigmaT - c.x * sigmaC, max(t.y * t.y * sigmaT * sigmaT - c.y * c.y * sigmaC * sigmaC, 0.0));
 }
 
-// The rendered surface at the macro point p (octave weights ms_weight[] as set last): its height and
-// slopes in the macro tangent frame, the unresolved height variance and slope covariance, and the texture
-// fractal r. With a transfer function h = g(f): E[g] and the slope moments of §7, and g's moments.
-// In surface-filter (no transfer function) the slopes that shade are the octaves' of weights
-// ms_slopeWeight (heightfield.glsl: between β₁ and the rendered surface's β where the relief stands out of
-// the pixel), about which the rest of their variance spreads. Smith's Λ keeps the rendered surface's
-// residual: ms_shade builds its masking from the unresolved statistics, not from these. Measured (256 px,
-// 64-spp references, surface-filter FLIP with the rendered surface's slopes -> MS_SLOPE_WEIGHT_GATE 0.5
-// and 0): micro-irradiance-terrain 0.0410 -> 0.0387 and 0.0386, micro-slopes-terrain (9 samples) 0.0864
-// -> 0.0841 and 0.0850, micro-heights-terrain 0.0806 -> 0.0801 and 0.0814, micro-heights-grazing 0.0516
-// -> 0.0513 and 0.0519; the spheres within 0.0001, their
-// relief gate about 0. texture-filter keeps the rendered surface's slopes: with β₁'s it went 0.140 -> 0.165
-// on the irradiance terrain and 0.142 -> 0.158 on the heights terrain. docs/microsurface.md, "The slopes
-// that shade".
+// The rendered surface at the macro point p (octave weights ms_weight[] as set last): its height and slopes in
+// the macro tangent frame, the unresolved height variance and slope covariance, and the texture fractal r.
+// With a transfer function h = g(f): E[g] and the slope moments of §7, and g's moments. In surface-filter (no
+// transfer function) the slopes that shade are the octaves' of weights ms_slopeWeight (heightfield.glsl:
+// between β₁ and the rendered surface's β where the relief stands out of the pixel), about which the rest of
+// their variance spreads. Smith's Λ keeps the rendered surface's residual: ms_shade builds its masking from
+// the unresolved statistics, not from these. Measured (256 px, 64-spp references, surface-filter FLIP with the
+// rendered surface's slopes -> MS_SLOPE_WEIGHT_GATE 0.5 and 0): micro-irradiance-terrain 0.0410 -> 0.0387 and
+// 0.0386, micro-slopes-terrain (9 samples) 0.0864 -> 0.0841 and 0.0850, micro-heights-terrain 0.0806 -> 0.0801
+// and 0.0814, micro-heights-grazing 0.0516 -> 0.0513 and 0.0519; the spheres within 0.0001, their relief gate
+// about 0. texture-filter keeps the rendered surface's slopes: with β₁'s it went 0.140 -> 0.165 on the
+// irradiance terrain and 0.142 -> 0.158 on the heights terrain. docs/microsurface.md, "The slopes that shade".
 struct MsSurface {
     float h;
     vec2 slope;
@@ -223,11 +221,11 @@ MsSurface ms_surfaceAt(vec3 p, mat3 frame) {
     return s;
 }
 
-// Shading samples: where the sub-pixel ray through the macro surface point x0 (from the eye for
-// perspective cameras, along the view direction d for orthographic ones) meets the plane through the
-// marched point q with normal n (main(): the coarse surface's tilt over twice the pixel): the parallax of
-// the marched relief to first order (on a facet that faces a grazing eye the points close up). Kept within twice |shift| of q; q + shift,
-// the point on the macro surface's tangent plane, where the ray runs along the facet.
+// Shading samples: where the sub-pixel ray through the macro surface point x0 (from the eye for perspective
+// cameras, along the view direction d for orthographic ones) meets the plane through the marched point q with
+// normal n (main(): the coarse surface's tilt over twice the pixel): the parallax of the marched relief to
+// first order (on a facet that faces a grazing eye the points close up). Kept within twice |shift| of q;
+// where the ray runs along the facet, q + shift (the point on the macro surface's tangent plane).
 vec3 ms_subpixelPoint(vec3 x0, vec3 d, vec3 q, vec3 n, vec3 shift) {
     vec3 dk = u_eyeObject.w > 0.5 ? normalize(x0 - u_eyeObject.xyz) : d;
     float den = dot(dk, n);
