@@ -22,8 +22,8 @@
 //
 // Functions
 //   vec3 ms_irradianceSH(vec3 coeffs[9], vec3 n)
-//   vec3 ms_irradianceSHMoments(vec3 coeffs[9], float w, vec3 n, vec3 sq, vec3 cross): E summed over
-//     normals, from their weighted monomials
+//   vec3 ms_irradianceSHMoments(vec3 coeffs[9], float w, vec3 n, vec3 sq, vec3 products): E summed
+//     over normals, from their weighted monomials
 //   vec3 ms_filteredIrradianceSH(vec3 coeffs[9], mat3 worldFromTangent, vec2 mean, vec3 cov)
 //   vec3 ms_filteredIrradianceMomentsSH(..., vec2 direction, out vec3 covariance): also Cov(s·d, E)
 
@@ -35,12 +35,12 @@ const float MS_SH_K20 = 0.247707956;  // (pi / 4) * 0.315392 (3 z^2 - 1)
 const float MS_SH_K22 = 0.429042765;  // (pi / 4) * 0.546274 (x^2 - y^2)
 
 // E is a quadratic polynomial in n, so it is linear in n's monomials: given the weighted moments of a set of
-// normals (w = sum of the weights, n = sum of w n, sq = sum of w (x², y², z²), cross = sum of w (xy, yz, zx))
-// this is the weighted sum of E over them. One normal of weight 1 gives E(n).
-vec3 ms_irradianceSHMoments(vec3 coeffs[9], float w, vec3 n, vec3 sq, vec3 cross) {
+// normals (w = sum of the weights, n = sum of w n, sq = sum of w (x², y², z²), products = sum of
+// w (xy, yz, zx)) this is the weighted sum of E over them. One normal of weight 1 gives E(n).
+vec3 ms_irradianceSHMoments(vec3 coeffs[9], float w, vec3 n, vec3 sq, vec3 products) {
     return MS_SH_K0 * w * coeffs[0]
         + MS_SH_K1 * (n.y * coeffs[1] + n.z * coeffs[2] + n.x * coeffs[3])
-        + MS_SH_K2 * (cross.x * coeffs[4] + cross.y * coeffs[5] + cross.z * coeffs[7])
+        + MS_SH_K2 * (products.x * coeffs[4] + products.y * coeffs[5] + products.z * coeffs[7])
         + MS_SH_K20 * (3.0 * sq.z - w) * coeffs[6]
         + MS_SH_K22 * (sq.x - sq.y) * coeffs[8];
 }
@@ -61,8 +61,8 @@ vec3 ms_filteredIrradianceMomentsSH(vec3 coeffs[9], mat3 worldFromTangent, vec2 
     float l22 = sqrt(max(cov.z - l21 * l21, 0.0));
     // the nodes' weighted monomials, and the same weighted by (s - mean)·d
     float w1 = 0.0, wd = 0.0;
-    vec3 n1 = vec3(0.0), sq = vec3(0.0), cross = vec3(0.0);
-    vec3 nd = vec3(0.0), sqd = vec3(0.0), crossd = vec3(0.0);
+    vec3 n1 = vec3(0.0), sq = vec3(0.0), products = vec3(0.0);
+    vec3 nd = vec3(0.0), sqd = vec3(0.0), productsd = vec3(0.0);
     for (int i = 0; i < 3; ++i) {
         float xi = 1.7320508 * float(i - 1);
         float wi = i == 1 ? 0.6666667 : 0.16666667;
@@ -72,20 +72,20 @@ vec3 ms_filteredIrradianceMomentsSH(vec3 coeffs[9], mat3 worldFromTangent, vec2 
             vec2 offset = vec2(l11 * xi, l21 * xi + l22 * xj);
             vec3 n = normalize(worldFromTangent * vec3(-(mean + offset), 1.0));
             float w = wi * wj;
-            vec3 wn = w * n, wsq = wn * n, wcross = wn * n.yzx;
+            vec3 wn = w * n, wsq = wn * n, wproducts = wn * n.yzx;
             w1 += w;
             n1 += wn;
             sq += wsq;
-            cross += wcross;
+            products += wproducts;
             float along = dot(offset, direction);
             wd += along * w;
             nd += along * wn;
             sqd += along * wsq;
-            crossd += along * wcross;
+            productsd += along * wproducts;
         }
     }
-    covariance = ms_irradianceSHMoments(coeffs, wd, nd, sqd, crossd);
-    return ms_irradianceSHMoments(coeffs, w1, n1, sq, cross);
+    covariance = ms_irradianceSHMoments(coeffs, wd, nd, sqd, productsd);
+    return ms_irradianceSHMoments(coeffs, w1, n1, sq, products);
 }
 
 vec3 ms_filteredIrradianceSH(vec3 coeffs[9], mat3 worldFromTangent, vec2 mean, vec3 cov) {
