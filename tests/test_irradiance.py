@@ -365,6 +365,34 @@ def test_glsl_irradiance_matches_python(target):
 
 
 @pytest.mark.parametrize("target", TARGETS)
+def test_glsl_irradiance_of_summed_monomials_is_the_sum_of_irradiances(target):
+    """ms_irradianceSHMoments on the weighted sums of three normals' monomials equals the weighted sum of
+    E at each normal, E from the NumPy evaluation of RH2001 (what the cubature relies on)."""
+    coeffs = sh9_project(read_environment(DATA / "sky-high-sun.exr"))
+    rng = np.random.default_rng(11)
+    count = 200
+    normals = _unit(3 * count, rng).reshape(count, 3, 3)
+    weights = rng.uniform(-0.5, 1.0, (count, 3))  # signed, as the covariance's (s - mean)·d weights are
+    w = weights.sum(axis=1)
+    first = np.einsum("ck,ckj->cj", weights, normals)
+    squares = np.einsum("ck,ckj->cj", weights, normals**2)
+    products = np.einsum("ck,ckj->cj", weights, normals * np.roll(normals, -1, axis=2))  # xy, yz, zx
+    got = glsl_eval(
+        "ms_irradianceSHMoments(coeffs, w, n, sq, products)",
+        {"w": w, "n": first, "sq": squares, "products": products},
+        out_components=3,
+        includes=(GLSL,),
+        target=target,
+        prelude=PRELUDE,
+        uniforms={"coeffs": sh_uniform(coeffs)},
+    )
+    expected = np.einsum(
+        "ck,ckj->cj", weights, irradiance_sh(coeffs, normals.reshape(-1, 3)).reshape(count, 3, 3)
+    )
+    np.testing.assert_allclose(got, expected, atol=3e-6 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("target", TARGETS)
 def test_glsl_filtered_irradiance_matches_python(target):
     """ms_filteredIrradianceSH, and the covariance Cov(s·d, E) of ms_filteredIrradianceMomentsSH, against
     their NumPy twins."""
