@@ -59,8 +59,8 @@ vec3 ms_filteredIrradianceMomentsSH(vec3 coeffs[9], mat3 worldFromTangent, vec2 
     float l11 = sqrt(max(cov.x, 0.0));
     float l21 = l11 > 0.0 ? cov.y / l11 : 0.0;
     float l22 = sqrt(max(cov.z - l21 * l21, 0.0));
-    // the nodes' weighted monomials, and the same weighted by (s - mean)·d
-    float w1 = 0.0, wd = 0.0;
+    // the nodes' weighted monomials, and the same weighted by (s - mean)·d; the weights' own sums are 1 and
+    // 0 (they sum to 1, and the nodes are symmetric about the mean)
     vec3 n1 = vec3(0.0), sq = vec3(0.0), products = vec3(0.0);
     vec3 nd = vec3(0.0), sqd = vec3(0.0), productsd = vec3(0.0);
     for (int i = 0; i < 3; ++i) {
@@ -73,19 +73,17 @@ vec3 ms_filteredIrradianceMomentsSH(vec3 coeffs[9], mat3 worldFromTangent, vec2 
             vec3 n = normalize(worldFromTangent * vec3(-(mean + offset), 1.0));
             float w = wi * wj;
             vec3 wn = w * n, wsq = wn * n, wproducts = wn * n.yzx;
-            w1 += w;
             n1 += wn;
             sq += wsq;
             products += wproducts;
             float along = dot(offset, direction);
-            wd += along * w;
             nd += along * wn;
             sqd += along * wsq;
             productsd += along * wproducts;
         }
     }
-    covariance = ms_irradianceSHMoments(coeffs, wd, nd, sqd, productsd);
-    return ms_irradianceSHMoments(coeffs, w1, n1, sq, products);
+    covariance = ms_irradianceSHMoments(coeffs, 0.0, nd, sqd, productsd);
+    return ms_irradianceSHMoments(coeffs, 1.0, n1, sq, products);
 }
 
 vec3 ms_filteredIrradianceSH(vec3 coeffs[9], mat3 worldFromTangent, vec2 mean, vec3 cov) {
