@@ -354,13 +354,16 @@ def parse_colour_table(r) -> ColourTable:
         if not (isinstance(stop, list) and len(stop) == 2 and isinstance(stop[0], int | float)):
             raise r.fail(f"stops[{i}]", f"expected [position, colour], got {stop!r}")
         pairs.append((float(stop[0]), stop[1]))
+    # the keys' own errors name them; only what from_stops finds wrong is the stops'
+    n = r.integer("size", 256, lo=2, hi=4096)
     try:
-        table = ColourTable.from_stops(
-            pairs,
-            n=r.integer("size", 256, lo=2, hi=4096),
-            wrap=r.string("wrap", "modulo", choices=("modulo", "clamp")),
-            interpolation=r.string("interpolation", "linear", choices=("linear", "step")),
-        )
+        _check_size(n)
+    except PrefilterError as exc:
+        raise r.fail("size", str(exc)) from None
+    wrap = r.string("wrap", "modulo", choices=("modulo", "clamp"))
+    interpolation = r.string("interpolation", "linear", choices=("linear", "step"))
+    try:
+        table = ColourTable.from_stops(pairs, n=n, wrap=wrap, interpolation=interpolation)
     except PrefilterError as exc:
         raise r.fail("stops", str(exc)) from None
     r.finish()

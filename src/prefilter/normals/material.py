@@ -328,10 +328,9 @@ def parse_normal_map(r: Reader, base_dir: Path) -> NormalsMaterial:
         surface = call_from_table(gen, GENERATORS, "surface generator")
     elif paths:
         key = "normal_map" if "normal_map" in paths else "height_map"
+        height_scale = r.number("height_scale", 1.0, lo=0.0)  # its own error names it, not the map
         try:
-            surface = load_surface(
-                paths.get("normal_map"), paths.get("height_map"), r.number("height_scale", 1.0, lo=0.0)
-            )
+            surface = load_surface(paths.get("normal_map"), paths.get("height_map"), height_scale)
         except PrefilterError as exc:
             raise r.fail(key, str(exc)) from None
     else:
