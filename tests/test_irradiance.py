@@ -240,6 +240,37 @@ def test_read_environment_rejects_non_equirect(tmp_path):
     assert env.shape == (128, 256, 3) and env.dtype == np.float64 and env.min() >= 0
 
 
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        (b"not an image", "cannot read as EXR"),  # OpenEXR's RuntimeError had escaped as a traceback
+        (None, "twice as wide"),
+    ],
+)
+def test_a_bad_environment_map_is_named_by_its_scene_key(tmp_path, capsys, content, message):
+    from prefilter.cli import main
+    from prefilter.images import write_image
+
+    env = tmp_path / "env.exr"
+    if content is None:
+        write_image(env, np.ones((8, 8, 3), np.float32))
+    else:
+        env.write_bytes(content)
+    scene = tmp_path / "bad.toml"
+    scene.write_text(
+        'name = "t"\nsize = [16, 12]\n[camera]\neye = [0.0, 1.0, 3.0]\ntarget = [0.0, 0.0, 0.0]\n'
+        '[[object]]\nshape = "plane"\n[object.material]\ntype = "microsurface"\n'
+        '[object.material.irradiance]\nenvironment = "env.exr"\n[object.material.height]\noctaves = 2\n'
+        "[object.material.height_colour]\n[object.material.height_colour.colour_table]\n"
+        'stops = [[0.0, "#808080"], [1.0, "#808080"]]\n'
+    )
+    out = tmp_path / "out.png"
+    assert main(["render", str(scene), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "material.irradiance.environment:" in err[0] and message in err[0], err
+    assert not out.exists()
+
+
 # --- filtered irradiance over Gaussian slopes -----------------------------------------------------------
 
 

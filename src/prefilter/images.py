@@ -173,7 +173,12 @@ def read_image(path: str | os.PathLike) -> tuple[np.ndarray, dict]:
         raise _unsupported(path, ext)
     if not path.is_file():
         raise PrefilterError(f"{path}: no such image file")
-    return readers[ext](path)
+    try:
+        return readers[ext](path)
+    except PrefilterError:
+        raise
+    except Exception as exc:  # imageio and OpenEXR raise many kinds (OSError, RuntimeError, ValueError)
+        raise PrefilterError(f"{path}: cannot read as {ext[1:].upper()} ({exc})") from None
 
 
 def _box_weights(n_in: int, n_out: int) -> np.ndarray:

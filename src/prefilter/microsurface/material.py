@@ -41,6 +41,7 @@ from pathlib import Path
 import moderngl
 import numpy as np
 
+from prefilter import PrefilterError
 from prefilter.colormap.gaussian import parse_preconvolve_options, preconvolve
 from prefilter.colormap.table import ColourTable, parse_colour_table
 from prefilter.gl.uniforms import bind_samplers, set_uniforms
@@ -287,6 +288,12 @@ def parse_microsurface(r: Reader, base_dir: Path) -> MicrosurfaceMaterial:
         environment = environment if environment.is_absolute() else base_dir / environment
         if not environment.is_file():
             raise er.fail("environment", f"file not found: {environment}")
+        from prefilter.microsurface.irradiance import read_environment
+
+        try:  # read once here so that a bad map is named by its key (upload reads it again)
+            read_environment(environment)
+        except PrefilterError as exc:
+            raise er.fail("environment", str(exc)) from None
         intensity = er.number("intensity", 1.0, lo=0.0)
         er.finish()
     return MicrosurfaceMaterial(
