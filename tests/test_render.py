@@ -135,6 +135,28 @@ def test_render_rejects_bad_mode_and_extension(tmp_path, capsys):
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["render", "zone-plate", "--size", "16x16", "-o", "{blocked}/x.png"],
+        ["compare", "zone-plate", "--size", "16x16", "--spp", "1", "-o", "{blocked}/cmp"],
+        ["export", "zone-plate", "-o", "{blocked}/exp"],
+        ["bench", "zone-plate", "--quick", "--json", "{blocked}/b.json"],
+        ["bench", "zone-plate", "--quick", "--json", "{ok}/b.json", "--plots", "{blocked}/plots"],
+    ],
+)
+def test_an_output_that_cannot_be_written_fails_before_rendering(tmp_path, capsys, command):
+    """A file where a directory should be: one line naming the output, exit 1, nothing written (it had been a
+    traceback from the writer's temporary file, after the rendering)."""
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    argv = [a.format(blocked=blocker / "sub", ok=tmp_path / "ok") for a in command]
+    assert main(argv) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("prefilter: error:") and str(blocker) in err[0], err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]
+
+
 def test_compare_command_writes_report(tmp_path):
     out = tmp_path / "cmp"
     assert main(["compare", "zone-plate", "--size", "48x48", "--spp", "16", "-o", str(out)]) == 0

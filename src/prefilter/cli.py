@@ -10,12 +10,26 @@ import argparse
 import re
 import signal
 import sys
+import tempfile
 from pathlib import Path
 
 from prefilter import PrefilterError
 from prefilter.scene import SceneError
 
 _SIZE = re.compile(r"^(\d+)x(\d+)$")
+
+
+def check_writable(path: Path) -> None:
+    """Fail before any rendering when `path` cannot be written: a file is created and removed at once in the
+    nearest directory of its that exists (the writers make the missing ones)."""
+    ancestor = path.absolute().parent
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    try:
+        with tempfile.TemporaryFile(dir=ancestor):
+            pass
+    except OSError as exc:
+        raise PrefilterError(f"{path}: cannot write in {ancestor} ({exc.strerror or exc})") from None
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -56,6 +70,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.suffix.lower() not in IMAGE_EXTENSIONS:
         raise PrefilterError(f"{out}: unsupported image extension; use one of {', '.join(IMAGE_EXTENSIONS)}")
+    check_writable(out)
     valid = scene_modes(scene, diagnostics=True) + [REFERENCE]
     if args.mode not in valid:
         raise PrefilterError(f"--mode {args.mode}: not a mode of {scene.name} (valid: {', '.join(valid)})")
@@ -93,6 +108,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from prefilter.scene import resolve_scene
 
     scene = resolve_scene(args.scene)
+    check_writable(Path(args.output))
     options = RenderOptions(quant_bits=args.quant_bits, reduced=args.reduced, first_order=args.first_order)
     result = compare_scene(
         scene,
@@ -110,6 +126,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
 def cmd_bench(args: argparse.Namespace) -> int:
     from prefilter.bench import run_bench
 
+    if args.json:
+        check_writable(Path(args.json))
+    if args.plots:
+        check_writable(Path(args.plots) / "plot.png")
     return run_bench(
         args.names,
         json_path=args.json,
@@ -130,6 +150,8 @@ def cmd_bake(args: argparse.Namespace) -> int:
     from prefilter.scene import resolve_scene
 
     scene = resolve_scene(args.scene)
+    if args.json:
+        check_writable(Path(args.json))
     objects = [obj for obj in scene.objects if getattr(obj.material, "surface", None) is not None]
     if not objects:
         raise PrefilterError(f"{scene.source}: no object has a normal-map material to bake")
@@ -158,6 +180,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     scene = resolve_scene(args.scene)
     if args.size:
         scene.size = args.size
+    check_writable(Path(args.output))
     options = RenderOptions(quant_bits=args.quant_bits, reduced=args.reduced, first_order=args.first_order)
     print(export_scene(scene, Path(args.output), options))
     return 0
@@ -276,6 +299,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"prefilter: error: {exc}", file=sys.stderr)
         return 2
     except PrefilterError as exc:
+        print(f"prefilter: error: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:  # what check_writable cannot foresee (a full disk, a directory removed meanwhile)
         print(f"prefilter: error: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
