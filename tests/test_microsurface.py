@@ -1036,3 +1036,15 @@ def test_shader_masking_slopes_equal_the_numpy_twin_and_its_table():
     assert ((beta > 0.05) & (beta < 0.95)).sum() >= 3  # octaves partly coarse, partly micro
     np.testing.assert_allclose(got[:2], effective_slope_variance(FRACTAL), rtol=1e-4)
     np.testing.assert_allclose(got[2], effective_slope_variance(FRACTAL, beta), rtol=2e-3)
+
+
+def test_zoom_study_leaves_out_distances_where_nothing_is_wholly_covered():
+    """At a small --size the far end of the sweep shows the sphere in no whole pixel: those distances are
+    listed, not measured (FLIP over an empty mask had raised ValueError out of `prefilter bench`)."""
+    from prefilter.bench import zoom_study
+    from prefilter.scene import resolve_scene
+
+    result = zoom_study(resolve_scene("micro-heights-sphere"), (12, 12), 4, None, count=3)
+    assert result["uncovered_distances"] == [24.0]
+    assert [round(r["distance"], 2) for r in result["rows"]] == [1.35, 5.69]
+    assert all(np.isfinite(r["surface-filter"]) for r in result["rows"])

@@ -530,13 +530,16 @@ def zoom_study(scene: Scene, size, spp: int, plot_path: Path | None, count: int 
     camera = scene.camera
     axis = (camera.eye - camera.target) / np.linalg.norm(camera.eye - camera.target)
     modes = scene_modes(scene)
-    rows = []
+    rows, uncovered = [], []
     for distance in np.geomspace(1.35, 24.0, count):
         zoomed = replace(scene, camera=replace(camera, eye=camera.target + distance * axis))
         renderer = Renderer(zoomed, size)
         try:
             ref = renderer.reference(spp)
             mask = renderer.covered(ref, spp)
+            if not mask.any():  # a small --size: far away the object covers no whole pixel
+                uncovered.append(float(distance))
+                continue
             ref_rgb = composite(ref, scene.background)
             row = {"distance": float(distance)}
             for mode in modes:
@@ -550,7 +553,8 @@ def zoom_study(scene: Scene, size, spp: int, plot_path: Path | None, count: int 
     steps = [abs(b["surface-filter"] - a["surface-filter"]) for a, b in zip(rows, rows[1:], strict=False)]
     return {
         "rows": rows,
-        "max_step_surface_filter": max(steps),
+        "uncovered_distances": uncovered,  # left out: no pixel wholly covered at this --size
+        "max_step_surface_filter": max(steps) if steps else None,
         "plot": str(plot_path) if plot_path else None,
     }
 
