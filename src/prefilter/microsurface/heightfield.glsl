@@ -100,6 +100,9 @@ vec4 ms_transfer(float mu, float sigma) {
 #endif
 
 float ms_reliefGate = 0.0;  // g of the last ms_reliefFootprint: 1 where the coarse relief stands out of the pixel
+// The same ratio for the relief as the eye sees it, σ_c sin θ_o / P: its heights' extent across the ray (0 at
+// a normal view, where relief taller than a pixel hides nothing), against the gate's edges [1/4, 1].
+float ms_reliefParallax = 0.0;
 
 // The weight w of an octave in the coarse surface, for a box footprint with axes jx, jy in its lattice
 // units (noise_stats.glsl fits). Where the statistics carry the pixel it is β₁, the footprint's mean
@@ -353,6 +356,7 @@ void ms_reliefFootprint(vec3 q, vec3 view, inout vec3 dpdx, inout vec3 dpdy) {
     float pixel = max(length(dpdx), length(dpdy)) * cosine;  // the pixel's size across the ray
     float gate = smoothstep(0.25, 1.0, sigma / max(pixel, 1e-30));
     ms_reliefGate = gate;
+    ms_reliefParallax = sigma * sine / max(pixel, 1e-30);
     float scale = cosine / (cosine + gate * MS_FACING_SLOPE * sine);
     dpdx -= (1.0 - scale) * dot(dpdx, along) * along;
     dpdy -= (1.0 - scale) * dot(dpdy, along) * along;

@@ -22,9 +22,10 @@ Scene TOML (under [object.material], type = "microsurface"):
       3 x 2 with 3 along the footprint's longer screen axis, 3 x 3, 4 x 4) with the octaves split for the
       sub-boxes' footprint and averages them (microsurface.frag: the octaves the footprint half resolves are
       then integrated over the pixel, not sampled once), or once, as the paper does
-  relief_rays = 1 | 2 | 3 | 4   surface-filter: where the coarse relief stands out of the pixel, that many
-      sub-rays spread over the pixel's extent along the macro normal, marched as one column (heightfield.glsl
-      ms_marchColumn) and each shaded; their mean is the pixel (1: the centre ray alone)
+  marched_rows = true | false   surface-filter: where the coarse relief stands out of the pixel, the grid's
+      rows are sub-rays spread over the pixel's extent along the macro normal, marched as one column
+      (heightfield.glsl ms_marchColumn), each row's samples placed across the column on a plane through its
+      own hit; false: the whole grid on the plane through the centre ray's hit
   [height_colour], [slope_colour], [texture_colour]: scale = 1, offset = 0 (argument = scale·x + offset),
       [....colour_table] as for Hart's model, [....preconvolved] as for the gaussian mode
   [transfer]         function = "moss" | "sponge" | "linear" (microsurface/transfer.py), its parameters,
@@ -79,7 +80,7 @@ class MicrosurfaceMaterial:
     height_moments: str = "table"
     footprint: str = "relief"
     shading_samples: int = 4
-    relief_rays: int = 1
+    marched_rows: bool = True
     transfer: object | None = None  # microsurface.transfer.TransferFunction
     transfer_scale: float = 1.0  # h = transfer_scale · g(f)
     environment: Path | None = None
@@ -113,7 +114,8 @@ class MicrosurfaceMaterial:
         if self.transfer is not None:
             defines["MS_TRANSFER"] = True
         defines["MS_GRID_X"], defines["MS_GRID_Y"] = SHADING_GRIDS[self.shading_samples]
-        defines["MS_RELIEF_RAYS"] = self.relief_rays
+        # the column's sub-rays: the grid's rows
+        defines["MS_RELIEF_RAYS"] = SHADING_GRIDS[self.shading_samples][1] if self.marched_rows else 1
         defines["MS_SLOPE_LEAN"] = SLOPE_LEAN  # the fBm's visible slopes (fractal_masking.slope_lean)
         defines["MS_SLOPE_LEAN_FADE"] = float(np.sin(np.radians(SLOPE_LEAN_FADE_DEG)))
         if self.environment is not None:
@@ -267,7 +269,7 @@ def parse_microsurface(r: Reader, base_dir: Path) -> MicrosurfaceMaterial:
     shading_samples = r.integer("shading_samples", 4)
     if shading_samples not in SHADING_GRIDS:
         raise r.fail("shading_samples", f"must be 1, 4, 6, 9 or 16, got {shading_samples}")
-    relief_rays = r.integer("relief_rays", 1, lo=1, hi=4)
+    marched_rows = r.boolean("marched_rows", True)
     transfer, transfer_scale = None, 1.0
     xr = r.child("transfer")
     if xr is not None:
@@ -309,7 +311,7 @@ def parse_microsurface(r: Reader, base_dir: Path) -> MicrosurfaceMaterial:
         moments,
         footprint,
         shading_samples,
-        relief_rays,
+        marched_rows,
         transfer,
         transfer_scale,
         environment,

@@ -369,8 +369,24 @@ float ms_horizonVisibility(float visibility, MsMasking m, vec3 wo, vec3 wi, vec2
 #endif
 #endif
 
-// The pixel's radiance from its visible point q = o + t d (|d| = 1) on the marched coarse surface. gate: how
-// far the shading samples close up on q (ms_reliefGate; 1 where a column of sub-rays covers the pixel).
+// The rows of surface-filter's grid as marched sub-rays (main(); beyond the paper): where the coarse relief
+// stands out of the pixel as the eye sees it, the grid's MS_GRID_Y rows are the hits of a column of sub-rays
+// (ms_marchColumn), and each row's MS_GRID_X samples are placed across the column through its own hit, on a
+// plane with the tilt of q's placement plane (each row's own tilt, one more ms_coarseSlope per row, lowered
+// FLIP by 0.3-3 % and cost about 0.07x naive's frame on every pixel: llvmpipe ran its loop masked where
+// there was no column). ms_rows rows were hit (the others passed the silhouette): ms_rowPoint[r] is row r's
+// hit, ms_rowMacro[r] the macro point its sub-ray passes through. Row 0 is q: the pixel's statistics, split
+// and shadow profile are taken there, and the profile's reach spans the rows (their samples read it).
+#ifndef MS_RELIEF_RAYS
+#define MS_RELIEF_RAYS 1
+#endif
+bool ms_column = false;
+int ms_rows = 1;
+vec3 ms_rowPoint[MS_RELIEF_RAYS];
+vec3 ms_rowMacro[MS_RELIEF_RAYS];
+
+// The pixel's radiance from its visible point q = o + t d (|d| = 1) on the marched coarse surface (with
+// ms_column, row 0 of the column). gate: how far the shading samples close up on q (ms_reliefGate).
 vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, vec3 dpdx, vec3 dpdy, float gate) {
     vec3 q = o + t * d;
 #if !defined(MODE_POINT) && !defined(MODE_MARCH_STEPS)
@@ -478,11 +494,17 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     // the farthest sample's offset from the centre, and the most its clearance can differ from the centre's
 #if MS_SHADING_SAMPLES > 1
     // the grid's axes: X along the footprint's longer screen axis (they matter only for an N x M grid)
-    bool swapAxes = length(dpdy) > length(dpdx);
+    bool swapAxes = !ms_column && length(dpdy) > length(dpdx);  // the column's: X across it, Y along
     vec3 gridX = swapAxes ? dpdy : dpdx, gridY = swapAxes ? dpdx : dpdy;
     vec3 gridXMacro = swapAxes ? dpdyMacro : dpdxMacro, gridYMacro = swapAxes ? dpdxMacro : dpdyMacro;
-    vec2 reach = (1.0 - gate) * vec2(MS_GRID_X - 1, MS_GRID_Y - 1) / vec2(2 * MS_GRID_X, 2 * MS_GRID_Y);
+    vec2 reach = (1.0 - gate) * vec2(MS_GRID_X - 1, ms_column ? 0 : MS_GRID_Y - 1) / vec2(2 * MS_GRID_X, 2 * MS_GRID_Y);
     float spacing = max(length(reach.x * gridX + reach.y * gridY), length(reach.x * gridX - reach.y * gridY));
+    // the column's rows are as far from q as their hits (their samples are traced from q's shadow profile)
+    for (int r = 1; r < MS_RELIEF_RAYS; ++r) {
+        if (r >= ms_rows) break;
+        vec3 apart = ms_rowPoint[r] - q;
+        spacing = max(spacing, length(apart - dot(apart, frame[2]) * frame[2]) + length(reach.x * gridX));
+    }
 #else
     float spacing = 0.0;
 #endif
@@ -508,6 +530,7 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     // Where the relief stands out of the pixel it is geometry already: the samples close up towards the
     // centre.
     vec2 sub = mix(1.0 / vec2(MS_GRID_X, MS_GRID_Y), vec2(1.0), gate);  // the sub-box, in pixel axes
+    if (ms_column) sub.y = 1.0 / float(MS_GRID_Y);  // a row's share of the pixel, whatever the gate
     // The plane the samples are placed on (ms_subpixelPoint) carries the coarse surface's tilt over the
     // region they can reach, twice the pixel (a sample may lie up to twice its offset from q), not the tilt
     // at q: q is a visible point, so the slope there of octaves about a pixel across leans towards the eye,
@@ -570,20 +593,27 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     ms_restoreSplit(sampled);
 #endif
 #endif
-    vec3 radiance = vec3(0.0);
+    // Each row's samples are averaged with their weights, and the rows with equal ones: a column's row is
+    // the share of the pixel that its sub-ray stands for (on the plane, one row holds every sample).
+    vec3 radiance = vec3(0.0), rowRadiance = vec3(0.0);
     float weightSum = 0.0;
 #if MS_SHADING_SAMPLES > 1
-    int sampleCount = gate < 1.0 ? MS_SHADING_SAMPLES : 1;  // all at the centre: shade it once
+    int sampleCount = gate < 1.0 ? (ms_column ? MS_GRID_X * ms_rows : MS_SHADING_SAMPLES) : 1;  // all at the centre: once
+    int rowLength = ms_column ? MS_GRID_X : MS_SHADING_SAMPLES;
 #else
     int sampleCount = 1;
+    int rowLength = 1;
 #endif
     for (int k = 0; k < MS_SHADING_SAMPLES; ++k) {
         vec3 sampleRadiance = vec3(0.0);
 #if MS_SHADING_SAMPLES > 1
         vec2 offset = (vec2(k % MS_GRID_X, k / MS_GRID_X) + 0.5 - 0.5 * vec2(MS_GRID_X, MS_GRID_Y))
                     * (1.0 - gate) / vec2(MS_GRID_X, MS_GRID_Y);
-        vec3 pk = ms_subpixelPoint(p0 + offset.x * gridXMacro + offset.y * gridYMacro, d, q, placementNormal,
-                                   offset.x * gridX + offset.y * gridY);
+        int row = ms_column ? min(k / MS_GRID_X, MS_RELIEF_RAYS - 1) : 0;
+        if (ms_column) offset.y = 0.0;  // the row's sub-ray is at its height already
+        vec3 rowMacro = ms_column ? ms_rowMacro[row] : p0;
+        vec3 pk = ms_subpixelPoint(rowMacro + offset.x * gridXMacro + offset.y * gridYMacro, d,
+                                   ms_column ? ms_rowPoint[row] : q, placementNormal, offset.x * gridX + offset.y * gridY);
         MsSurface s = ms_surfaceAt(ms_project(pk), frame);
         vec3 lag = pk - q;
         lag -= dot(lag, frame[2]) * frame[2];  // the sample's offset from q along the macro surface
@@ -694,11 +724,16 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
         float correlation = exp(-0.5 * decorrelation * decorrelation);  // 1 with one sample: its weight cancels
         // (every sample's facets facing away from the eye, area 0: a near miss of the march; their plain mean)
         float weight = pow(max(area, 1e-30), 1.0 - correlation);
-        radiance += weight * sampleRadiance;
+        rowRadiance += weight * sampleRadiance;
         weightSum += weight;
+        if ((k + 1) % rowLength == 0 || k + 1 >= sampleCount) {  // the row's last sample
+            radiance += rowRadiance / weightSum;
+            rowRadiance = vec3(0.0);
+            weightSum = 0.0;
+        }
         if (k + 1 >= sampleCount) break;  // at the end of the body, as heightfield.glsl's octave loops
     }
-    radiance /= weightSum;
+    radiance /= float(ms_column ? ms_rows : 1);
 #endif
     return radiance;
 }
@@ -736,12 +771,23 @@ void main() {
                    / max(abs(dot(d, up)), MS_PRIMARY_STEP_FLOOR);
 #endif
 #ifdef MODE_SURFACE_FILTER
-    // Where the relief stands out of the pixel (ms_reliefGate >= 1/2), MS_RELIEF_RAYS sub-rays spread over the
-    // pixel's extent along the macro normal are marched as one column (ms_marchColumn) and shaded each, with
-    // the shading samples closed up; their radiances are averaged. Elsewhere the column is the centre ray,
-    // and its samples close up by MS_RELIEF_CLOSING of the gate: the sub-pixel rays' hits on relief that
-    // stands out of the pixel still spread over its facets, if less than over the coarse plane.
-    int rays = ms_reliefGate >= 0.5 ? MS_RELIEF_RAYS : 1;
+    // Where the relief's heights span more of the pixel, as the eye sees them, than the grid's rows lie apart
+    // (ms_reliefParallax > 1/rows), one ray would decide which ridge the whole pixel shows, and its plane where
+    // every sample lies: the grid's MS_GRID_Y rows are then sub-rays spread over the pixel's extent along the
+    // macro normal, marched as one column (ms_marchColumn), each row's samples placed across the column
+    // through its own hit and weighted among themselves (ms_shade), and the rows averaged. Elsewhere the
+    // column is the centre ray, and the whole grid lies on the plane through its hit. Measured (256 px,
+    // 64-spp references, surface-filter FLIP and frame time ÷ naive round-robin, the grid on the plane ->
+    // marched rows): micro-heights-terrain 0.0813 -> 0.0647 (1.25 -> 1.43), micro-heights-grazing 0.0528 ->
+    // 0.0473 (1.20 -> 1.38), micro-irradiance-terrain 0.0389 -> 0.0314 (1.29 -> 1.55), micro-moss-sphere
+    // 0.0890 -> 0.0793, micro-sponge-sphere 0.0967 -> 0.0853 (1.62 -> 1.9-2.0); micro-slopes-terrain 0.0845
+    // with 3 x 3 samples on the plane -> 0.0742 with 2 x 2 and marched rows (1.42 -> 1.43). The textured
+    // spheres keep their images (their relief spans less than half a pixel) and pay 0.03-0.06 x for the
+    // column's code. A column wherever the relief gate is open (also at near-normal views, where the rows
+    // fall on one point) took micro-heights-sphere 0.0503 -> 0.0548; one weighting over all the rows'
+    // samples (as on the plane) took the terrains back up (irradiance 0.0414): a marched row is a visible
+    // point already, so its facets' projected area is not a weight again.
+    int rays = ms_reliefParallax > 1.0 / float(MS_RELIEF_RAYS) ? MS_RELIEF_RAYS : 1;
     vec2 offsets[MS_RELIEF_RAYS];  // (origin, direction) offsets along up, ascending
     for (int k = 0; k < MS_RELIEF_RAYS; ++k) {
         float f = extent * ((float(k) + 0.5) / float(rays) - 0.5);
@@ -749,20 +795,37 @@ void main() {
     }
     float hits[MS_RELIEF_RAYS];
     ms_marchColumn(o, d, up, offsets, rays, MS_MAX_STEPS, hits);
-    float gate = rays > 1 ? 1.0 : MS_RELIEF_CLOSING * ms_reliefGate;
-    vec3 radiance = vec3(0.0);
-    float shown = 0.0;
+    float distance = perspective ? length(p0 - o) : 1.0;  // offsets of the direction move the macro point by this
+    int first = -1;
+    ms_rows = 0;
     for (int k = 0; k < MS_RELIEF_RAYS; ++k) {
         if (hits[k] >= 0.0) {  // else a sub-ray past the silhouette
             vec3 dk = d + offsets[k].y * up;
-            float len = length(dk);
-            radiance += ms_shade(o + offsets[k].x * up, dk / len, hits[k] * len, p0, dpdxMacro, dpdyMacro, dpdx, dpdy, gate);
-            shown += 1.0;
+            ms_rowPoint[ms_rows] = o + offsets[k].x * up + hits[k] * dk;
+            ms_rowMacro[ms_rows] = p0 + (offsets[k].x + distance * offsets[k].y) * up;
+            if (first < 0) first = k;
+            ms_rows += 1;
         }
         if (k + 1 >= rays) break;  // at the end of the body, as heightfield.glsl's octave loops
     }
-    if (shown == 0.0) discard;
-    radiance /= shown;
+    if (first < 0) discard;
+    ms_column = rays > 1;
+    // the screen axes of ms_shade's grid (per pixel: macro, and on the relief footprint); for a column X
+    // across it and Y along it, the column's screen direction c being up's, in the basis (ex, ey)
+    vec3 axisXMacro = dpdxMacro, axisYMacro = dpdyMacro, axisX = dpdx, axisY = dpdy;
+    if (ms_column) {
+        mat2 gram = mat2(dot(ex, ex), dot(ex, ey), dot(ex, ey), dot(ey, ey));
+        vec2 c = inverse(gram) * vec2(dot(ex, upAcross), dot(ey, upAcross));
+        c = dot(c, c) > 1e-24 ? normalize(c) : vec2(0.0, 1.0);
+        axisXMacro = -c.y * dpdxMacro + c.x * dpdyMacro;
+        axisYMacro = c.x * dpdxMacro + c.y * dpdyMacro;
+        axisX = -c.y * dpdx + c.x * dpdy;
+        axisY = c.x * dpdx + c.y * dpdy;
+    }
+    vec3 df = d + offsets[first].y * up;
+    float len = length(df);
+    vec3 radiance = ms_shade(o + offsets[first].x * up, df / len, hits[first] * len, p0, axisXMacro, axisYMacro, axisX,
+                             axisY, MS_RELIEF_CLOSING * ms_reliefGate);
 #else
     float t = ms_march(o, d, slab, MS_MAX_STEPS, true);
     if (t < 0.0) discard;
