@@ -101,7 +101,8 @@ vec4 ms_transfer(float mu, float sigma) {
 
 float ms_reliefGate = 0.0;  // g of the last ms_reliefFootprint: 1 where the coarse relief stands out of the pixel
 // The same ratio for the relief as the eye sees it, σ_c sin θ_o / P: its heights' extent across the ray (0 at
-// a normal view, where relief taller than a pixel hides nothing), against the gate's edges [1/4, 1].
+// a normal view, where relief taller than a pixel hides nothing). surface-filter marches the rows of its
+// grid where it exceeds 1/rows (microsurface.frag, main()); 0 with MS_MACRO_FOOTPRINT.
 float ms_reliefParallax = 0.0;
 
 // The weight w of an octave in the coarse surface, for a box footprint with axes jx, jy in its lattice
