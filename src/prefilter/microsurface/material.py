@@ -85,6 +85,8 @@ class MicrosurfaceMaterial:
     transfer_scale: float = 1.0  # h = transfer_scale · g(f)
     environment: Path | None = None
     environment_intensity: float = 1.0  # radiance of a white Lambertian facing up
+    # the environment's SH9 projection (9, 3), made once where the scene is read
+    environment_sh: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     kind = "microsurface"
 
@@ -158,14 +160,9 @@ class MicrosurfaceMaterial:
                 self.transfer_scale * float(np.max(np.abs(self.transfer.g_prime(v)))),
             )
         if self.environment is not None:
-            from prefilter.microsurface.irradiance import (
-                irradiance_sh,
-                read_environment,
-                sh9_project,
-                sh_uniform,
-            )
+            from prefilter.microsurface.irradiance import irradiance_sh, sh_uniform
 
-            coeffs = sh9_project(read_environment(self.environment))
+            coeffs = self.environment_sh
             # exposure: a white Lambertian facing up reflects radiance `intensity` (E_up = π · intensity)
             up = float(np.mean(irradiance_sh(coeffs, np.array([0.0, 0.0, 1.0]))))
             uniforms["u_sh"] = sh_uniform(coeffs * (np.pi * self.environment_intensity / up))
@@ -283,17 +280,17 @@ def parse_microsurface(r: Reader, base_dir: Path) -> MicrosurfaceMaterial:
         except TypeError as exc:
             raise xr.fail("function", f"bad parameters for {name}: {exc}") from None
         xr.finish()
-    environment, intensity = None, 1.0
+    environment, intensity, environment_sh = None, 1.0, None
     er = r.child("irradiance")
     if er is not None:
         environment = Path(er.string("environment", required=True))
         environment = environment if environment.is_absolute() else base_dir / environment
         if not environment.is_file():
             raise er.fail("environment", f"file not found: {environment}")
-        from prefilter.microsurface.irradiance import read_environment
+        from prefilter.microsurface.irradiance import read_environment, sh9_project
 
-        try:  # read once here so that a bad map is named by its key (upload reads it again)
-            read_environment(environment)
+        try:  # read here, once, so that a bad map is named by its key
+            environment_sh = sh9_project(read_environment(environment))
         except PrefilterError as exc:
             raise er.fail("environment", str(exc)) from None
         intensity = er.number("intensity", 1.0, lo=0.0)
@@ -316,4 +313,5 @@ def parse_microsurface(r: Reader, base_dir: Path) -> MicrosurfaceMaterial:
         transfer_scale,
         environment,
         intensity,
+        environment_sh,
     )

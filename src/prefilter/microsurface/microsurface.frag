@@ -377,9 +377,7 @@ float ms_horizonVisibility(float visibility, MsMasking m, vec3 wo, vec3 wi, vec2
 // there was no column). ms_rows rows were hit (the others passed the silhouette): ms_rowPoint[r] is row r's
 // hit, ms_rowMacro[r] the macro point its sub-ray passes through. Row 0 is q: the pixel's statistics, split
 // and shadow profile are taken there, and the profile's reach spans the rows (their samples read it).
-#ifndef MS_RELIEF_RAYS
-#define MS_RELIEF_RAYS 1
-#endif
+// MS_RELIEF_RAYS (heightfield.glsl): the column's sub-rays, the grid's rows (material.py).
 bool ms_column = false;
 int ms_rows = 1;
 vec3 ms_rowPoint[MS_RELIEF_RAYS];
