@@ -18,10 +18,11 @@ Scene TOML (under [object.material], type = "microsurface"):
   footprint = "relief" | "macro"   the pixel footprint that splits the octaves into geometry and
       statistics: on the visible relief, foreshortened by facets facing a grazing eye (heightfield.glsl
       ms_reliefFootprint), or on the macro surface
-  shading_samples = 4 | 6 | 9 | 16 | 1   surface-filter shades the pixel at N x M sub-pixel points (2 x 2,
-      3 x 2 with 3 along the footprint's longer screen axis, 3 x 3, 4 x 4) with the octaves split for the
-      sub-boxes' footprint and averages them (microsurface.frag: the octaves the footprint half resolves are
-      then integrated over the pixel, not sampled once), or once, as the paper does
+  shading_samples = 4 | 6 | 9 | 16 | 2 | 1   surface-filter shades the pixel at N x M sub-pixel points (2 x 2,
+      3 x 2 with 3 along the footprint's longer screen axis, 3 x 3, 4 x 4; 2: one per marched row, or two
+      along the longer axis) with the octaves split for the sub-boxes' footprint and averages them
+      (microsurface.frag: the octaves the footprint half resolves are then integrated over the pixel, not
+      sampled once), or once, as the paper does
   marched_rows = true | false   surface-filter: where the coarse relief stands out of the pixel, the grid's
       rows are sub-rays spread over the pixel's extent along the macro normal, marched as one column
       (heightfield.glsl ms_marchColumn), each row's samples placed across the column on a plane through its
@@ -54,8 +55,9 @@ SHADER_DIR = Path(__file__).resolve().parent
 PACKAGE_ROOT = SHADER_DIR.parent
 FILTERED_MODES = ("texture-filter", "surface-filter")
 MAPS = ("height", "slope", "texture")
-# shading_samples -> the sub-pixel grid (MS_GRID_X along the footprint's longer screen axis, MS_GRID_Y)
-SHADING_GRIDS = {1: (1, 1), 4: (2, 2), 6: (3, 2), 9: (3, 3), 16: (4, 4)}
+# shading_samples -> the sub-pixel grid (MS_GRID_X, MS_GRID_Y), its longer side along the footprint's longer
+# screen axis; MS_GRID_Y is the number of rows the column marches (1 x 2: one sample per row)
+SHADING_GRIDS = {1: (1, 1), 2: (1, 2), 4: (2, 2), 6: (3, 2), 9: (3, 3), 16: (4, 4)}
 
 
 @dataclass
@@ -265,7 +267,7 @@ def parse_microsurface(r: Reader, base_dir: Path) -> MicrosurfaceMaterial:
     footprint = r.string("footprint", "relief", choices=("relief", "macro"))
     shading_samples = r.integer("shading_samples", 4)
     if shading_samples not in SHADING_GRIDS:
-        raise r.fail("shading_samples", f"must be 1, 4, 6, 9 or 16, got {shading_samples}")
+        raise r.fail("shading_samples", f"must be 1, 2, 4, 6, 9 or 16, got {shading_samples}")
     marched_rows = r.boolean("marched_rows", True)
     transfer, transfer_scale = None, 1.0
     xr = r.child("transfer")

@@ -30,8 +30,9 @@ uniform vec3 u_sh[9];
 const mat3 MS_ENV_FROM_WORLD = mat3(vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), vec3(0.0, -1.0, 0.0));
 #endif
 
-// Shading samples of surface-filter: an MS_GRID_X x MS_GRID_Y grid of sub-pixel points, X along the longer
-// screen axis of the footprint (shading_samples 6 = 3 x 2; 1, 4, 9, 16 are square).
+// Shading samples of surface-filter: an MS_GRID_X x MS_GRID_Y grid of sub-pixel points, its longer side along
+// the longer screen axis of the footprint (shading_samples 6 = 3 x 2; 2 = 1 x 2, one sample on each of the
+// column's two rows where the relief stands out of the pixel; 1, 4, 9, 16 are square).
 #ifndef MS_GRID_X
 #define MS_GRID_X 1
 #endif
@@ -491,8 +492,9 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     // samples close up on the centre, are unchanged.
     // the farthest sample's offset from the centre, and the most its clearance can differ from the centre's
 #if MS_SHADING_SAMPLES > 1
-    // the grid's axes: X along the footprint's longer screen axis (they matter only for an N x M grid)
-    bool swapAxes = !ms_column && length(dpdy) > length(dpdx);  // the column's: X across it, Y along
+    // the grid's axes: its longer side along the footprint's longer screen axis (they matter only for an
+    // N x M grid); the column's: X across it, Y along
+    bool swapAxes = !ms_column && ((length(dpdy) > length(dpdx)) != (MS_GRID_Y > MS_GRID_X));
     vec3 gridX = swapAxes ? dpdy : dpdx, gridY = swapAxes ? dpdx : dpdy;
     vec3 gridXMacro = swapAxes ? dpdyMacro : dpdxMacro, gridYMacro = swapAxes ? dpdxMacro : dpdyMacro;
     vec2 reach = (1.0 - gate) * vec2(MS_GRID_X - 1, ms_column ? 0 : MS_GRID_Y - 1) / vec2(2 * MS_GRID_X, 2 * MS_GRID_Y);
