@@ -47,6 +47,9 @@ SURFACE_SIZE = 256
 # an 8-bit sRGB step at mid-grey, where one step is 1/275 in linear)
 RESOLVED_TOLERANCE = 1.0 / 512.0
 STUDY_SPP = 64  # the microsurface studies (zoom, log fit) render many references
+# surface-filter's shading samples traded for time on every microsurface preset (samples_study): these
+# besides the preset's own setting, which is the main table's row
+SAMPLES_STUDY = (1, 2, 4)
 ZOOM_PRESET = "micro-heights-sphere"
 FIT_PRESET = "micro-heights-terrain"
 # Fournier presets (issue #5): multilobe must beat the single-lobe baselines on those tagged so.
@@ -135,9 +138,8 @@ def bench_preset(scene: Scene, size, spp: int, frames: int) -> dict:
             entry["sigma_split"] = sigma_split(scene, size, result.mask)
     if "surface-filter" in filtered:
         entry["resolved_oracle"] = resolved_oracle(result)
-        checks["surface_flip_le_half_texture_filter"] = flip["surface-filter"] <= 0.5 * flip["texture-filter"]
-        checks["surface_flip_le_third_naive"] = flip["surface-filter"] <= flip["naive"] / 3.0
-        checks["surface_time_le_1.5_naive"] = metrics["surface-filter"]["ms"] <= 1.5 * metrics["naive"]["ms"]
+        entry["shading_samples"] = study = samples_study(scene, result, frames)
+        checks.update({f"surface_{k}": v for k, v in study[0]["targets"].items()})  # the preset's own setting
     if "multilobe" in filtered:
         entry["best_single_lobe"] = single = min(("toksvig", "lean"), key=flip.get)
         checks["multilobe_flip_le_half_naive"] = flip["multilobe"] <= 0.5 * flip["naive"]
@@ -559,6 +561,52 @@ def zoom_study(scene: Scene, size, spp: int, plot_path: Path | None, count: int 
     }
 
 
+def surface_targets(flip: float, flip_naive: float, flip_texture_filter: float, time_vs_naive: float) -> dict:
+    """Issue #4's three targets for one surface-filter setting."""
+    return {
+        "flip_le_half_texture_filter": flip <= 0.5 * flip_texture_filter,
+        "flip_le_third_naive": flip <= flip_naive / 3.0,
+        "time_le_1.5_naive": time_vs_naive <= 1.5,
+    }
+
+
+def samples_study(scene: Scene, result, frames: int) -> list[dict]:
+    """surface-filter with other numbers of shading samples than the preset's (SAMPLES_STUDY), against the
+    preset's reference: FLIP, its ratios to naive and texture-filter, and the frame time as a ratio to naive
+    measured round-robin with it. The first row is the preset's own setting, from the main table."""
+    material = scene.objects[0].material
+    metrics = result.metrics
+    naive, texture = metrics["naive"]["flip"], metrics["texture-filter"]["flip"]
+
+    def row(samples: int, flip: float, time_vs_naive: float) -> dict:
+        return {
+            "shading_samples": samples,
+            "flip": flip,
+            "vs_naive": flip / naive,
+            "vs_texture_filter": flip / texture,
+            "time_vs_naive": time_vs_naive,
+            "targets": surface_targets(flip, naive, texture, time_vs_naive),
+        }
+
+    own = metrics["surface-filter"]
+    rows = [row(material.shading_samples, own["flip"], own["ms"] / metrics["naive"]["ms"])]
+    for samples in SAMPLES_STUDY:
+        if samples == material.shading_samples:
+            continue
+        variant = replace(
+            scene, objects=[replace(scene.objects[0], material=replace(material, shading_samples=samples))]
+        )
+        renderer = Renderer(variant, result.size)
+        try:
+            image = composite(renderer.render("surface-filter"), scene.background)
+            ms = renderer.time_modes(["naive", "surface-filter"], frames)
+        finally:
+            renderer.release()
+        flip = float(compare(image, result.images[REFERENCE], result.mask)["flip"])
+        rows.append(row(samples, flip, ms["surface-filter"] / ms["naive"]))
+    return rows
+
+
 def log_fit_study(scene: Scene, size, spp: int) -> dict:
     """D_h's moments from the exact quadrature table against the paper's log fit (eqs. 16-17)."""
     size, spp = surface_size(scene, size), min(spp, STUDY_SPP)
@@ -650,6 +698,13 @@ def run_bench(
     for name, entry in results["presets"].items():
         checks = ", ".join(f"{k} {'yes' if v else 'NO'}" for k, v in entry["checks"].items())
         console.print(f"{name}: {checks}")
+        for r in entry.get("shading_samples", []):
+            met = ", ".join(f"{k} {'yes' if v else 'NO'}" for k, v in r["targets"].items())
+            console.print(
+                f"{name}: shading_samples = {r['shading_samples']}: FLIP {r['flip']:.4f} = "
+                f"{r['vs_naive']:.3f} x naive, {r['vs_texture_filter']:.2f} x texture-filter, "
+                f"{r['time_vs_naive']:.2f} x naive's time ({met})"
+            )
         if "resolved_oracle" in entry:
             o = entry["resolved_oracle"]
             console.print(
