@@ -58,3 +58,36 @@ def test_the_resolved_oracle_keeps_point_where_the_microsurface_changes_nothing_
     part = resolved_oracle(_comparison(point, naive, reference))
     assert part["resolved_share"] == pytest.approx(0.25)
     assert 0.0 < part["flip"] < everything["flip"]
+
+
+def test_the_samples_study_scores_each_setting_against_the_presets_own_reference():
+    """bench's shading-samples study on micro-slopes-sphere (which shades once): the preset's own row
+    first, from the main table, then 2 and 4 samples, each scored against the same reference as an
+    independent render of that setting, with the three targets read off its numbers."""
+    from dataclasses import replace
+
+    from prefilter.bench import samples_study
+    from prefilter.compare import compare_scene
+    from prefilter.gl.render import REFERENCE, Renderer, composite
+    from prefilter.metrics import compare
+    from prefilter.scene import resolve_scene
+
+    scene = resolve_scene("micro-slopes-sphere")
+    result = compare_scene(scene, size=(64, 64), spp=4, modes=["naive", "texture-filter", "surface-filter"])
+    study = samples_study(scene, result, frames=5)
+    assert [r["shading_samples"] for r in study] == [1, 2, 4]
+    assert study[0]["flip"] == result.metrics["surface-filter"]["flip"]
+    material = replace(scene.objects[0].material, shading_samples=4)
+    renderer = Renderer(replace(scene, objects=[replace(scene.objects[0], material=material)]), (64, 64))
+    try:
+        image = composite(renderer.render("surface-filter"), scene.background)
+    finally:
+        renderer.release()
+    assert study[2]["flip"] == pytest.approx(compare(image, result.images[REFERENCE], result.mask)["flip"])
+    naive, texture = result.metrics["naive"]["flip"], result.metrics["texture-filter"]["flip"]
+    for r in study:
+        assert r["vs_naive"] == pytest.approx(r["flip"] / naive)
+        assert r["targets"]["flip_le_third_naive"] == (r["flip"] <= naive / 3.0)
+        assert r["targets"]["flip_le_half_texture_filter"] == (r["flip"] <= 0.5 * texture)
+        assert r["targets"]["time_le_1.5_naive"] == (r["time_vs_naive"] <= 1.5)
+        assert r["time_vs_naive"] > 0.0
