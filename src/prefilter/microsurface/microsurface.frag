@@ -598,7 +598,7 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     vec3 radiance = vec3(0.0), rowRadiance = vec3(0.0);
     float weightSum = 0.0;
 #if MS_SHADING_SAMPLES > 1
-    int sampleCount = gate < 1.0 ? (ms_column ? MS_GRID_X * ms_rows : MS_SHADING_SAMPLES) : 1;  // all at the centre: once
+    int sampleCount = ms_column ? MS_GRID_X * ms_rows : MS_SHADING_SAMPLES;  // a column's hit rows, or the grid
     int rowLength = ms_column ? MS_GRID_X : MS_SHADING_SAMPLES;
 #else
     int sampleCount = 1;
