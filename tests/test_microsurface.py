@@ -19,7 +19,13 @@ from prefilter.microsurface.material import MicrosurfaceMaterial
 from prefilter.procedural.noise import perlin_noise, perlin_noise_grad
 from prefilter.procedural.noise_stats import footprint_samples, mean_fraction, random_footprints
 
-RNG = np.random.default_rng(21)
+
+def _rng(*key: int) -> np.random.Generator:
+    """A generator of its own for each caller and arguments: draws do not depend on which tests ran before
+    (pytest-xdist may run them in any order)."""
+    return np.random.default_rng([21, *key])
+
+
 FRACTAL = Fractal(octaves=4, amplitude=0.16, frequency=2.0, gain=0.5)
 INCLUDES = ("microsurface/heightfield.glsl",)
 
@@ -31,8 +37,9 @@ def _uniforms(fractal: Fractal = FRACTAL, radius: float = 1.0) -> dict:
 def _eval_on_the_plane(body: str, target: str, n: int = 400, defines=None) -> tuple[np.ndarray, np.ndarray]:
     """n random points of the macro plane (|x|, |z| < 4) and the vec4 that `body` (GLSL statements over
     vec3 p, ending in a return, with FRACTAL's uniforms and the shader `defines`) gives at each."""
+    rng = _rng(n)
     p = np.zeros((n, 3))
-    p[:, 0], p[:, 2] = RNG.uniform(-4, 4, (2, n))
+    p[:, 0], p[:, 2] = rng.uniform(-4, 4, (2, n))
     got = glsl_eval(
         "planeTest(p)",
         {"p": p},
@@ -47,9 +54,10 @@ def _eval_on_the_plane(body: str, target: str, n: int = 400, defines=None) -> tu
 
 
 def test_noise_statistics_constants_match_fresh_monte_carlo():
+    rng = _rng(1)
     # plane sections through the tilted lattice, as the height field samples them
     p = np.zeros((400_000, 3))
-    p[:, 0], p[:, 2] = RNG.uniform(0, 200, (2, len(p)))
+    p[:, 0], p[:, 2] = rng.uniform(0, 200, (2, len(p)))
     lattice = p @ LATTICE_FROM_OBJECT.T + np.array([0.0, 0.5, 0.0])
     values = perlin_noise(lattice)
     _, grad = perlin_noise_grad(lattice)
@@ -225,8 +233,9 @@ def test_shading_samples_predict_a_pixels_mean_slope_colour():
 
 
 def test_fractal_statistics_match_sampled_surface():
+    rng = _rng(2)
     p = np.zeros((300_000, 3))
-    p[:, 0], p[:, 2] = RNG.uniform(0, 100, (2, len(p)))
+    p[:, 0], p[:, 2] = rng.uniform(0, 100, (2, len(p)))
     h = FRACTAL.value(p)
     g = FRACTAL.gradient(p)
     assert h.var() == pytest.approx(FRACTAL.variance(), rel=0.05)
@@ -236,7 +245,8 @@ def test_fractal_statistics_match_sampled_surface():
 
 
 def test_fractal_gradient_matches_finite_differences():
-    p = RNG.uniform(-3, 3, (200, 3))
+    rng = _rng(3)
+    p = rng.uniform(-3, 3, (200, 3))
     g = FRACTAL.gradient(p)
     eps = 1e-5
     for axis in range(3):
@@ -290,10 +300,11 @@ def _longest_run_inside(o: np.ndarray, d: np.ndarray, t_end: float, n: int = 40_
 
 def _descending_rays(elevation: float, n: int = 64) -> tuple[np.ndarray, np.ndarray]:
     """n rays from 0.5 above the plane (|x|, |z| < 2) descending at `elevation` degrees, random azimuths."""
-    azimuth = RNG.uniform(0, 2 * np.pi, n)
+    rng = _rng(n, round(100 * elevation))
+    azimuth = rng.uniform(0, 2 * np.pi, n)
     e = np.radians(elevation)
     d = np.stack([np.cos(e) * np.cos(azimuth), -np.full(n, np.sin(e)), np.cos(e) * np.sin(azimuth)], 1)
-    o = np.stack([RNG.uniform(-2, 2, n), np.full(n, 0.5), RNG.uniform(-2, 2, n)], 1)
+    o = np.stack([rng.uniform(-2, 2, n), np.full(n, 0.5), rng.uniform(-2, 2, n)], 1)
     return o, d
 
 
@@ -393,9 +404,10 @@ def test_column_march_finds_every_sub_rays_first_hit(elevation):
 def _shadow_points(n: int, elevation: float) -> tuple[np.ndarray, np.ndarray]:
     """n points of the macro plane (|x|, |z| < 3) and n light directions at `elevation` degrees, random
     azimuths."""
+    rng = _rng(n, round(100 * elevation), 1)
     c = np.zeros((n, 3))
-    c[:, 0], c[:, 2] = RNG.uniform(-3, 3, (2, n))
-    azimuth = RNG.uniform(0, 2 * np.pi, n)
+    c[:, 0], c[:, 2] = rng.uniform(-3, 3, (2, n))
+    azimuth = rng.uniform(0, 2 * np.pi, n)
     cos_e, sin_e = np.cos(np.radians(elevation)), np.sin(np.radians(elevation))
     return c, np.stack([cos_e * np.cos(azimuth), np.full(n, sin_e), cos_e * np.sin(azimuth)], 1)
 
@@ -420,8 +432,9 @@ float profileLit(vec3 q, vec3 qk, vec3 delta, vec3 l) {
 
 def _nearby_offsets(n: int) -> np.ndarray:
     """n offsets δ in the plane, uniform over a disc of radius 0.03 (the finest octave's cell is 1/16)."""
-    azimuth = RNG.uniform(0, 2 * np.pi, n)
-    radius = 0.03 * np.sqrt(RNG.uniform(0, 1, n))
+    rng = _rng(n, 2)
+    azimuth = rng.uniform(0, 2 * np.pi, n)
+    radius = 0.03 * np.sqrt(rng.uniform(0, 1, n))
     return np.stack([radius * np.cos(azimuth), np.zeros(n), radius * np.sin(azimuth)], 1)
 
 
