@@ -62,8 +62,9 @@ def test_the_resolved_oracle_keeps_point_where_the_microsurface_changes_nothing_
 
 def test_the_samples_study_scores_each_setting_against_the_presets_own_reference():
     """bench's shading-samples study on micro-slopes-sphere (which shades once): the preset's own row
-    first, from the main table, then 2 and 4 samples, each scored against the same reference as an
-    independent render of that setting, with the three targets read off its numbers."""
+    first, its FLIP from the main table, then 2 and 4 samples, each scored against the same reference as an
+    independent render of that setting, with the three targets read off its numbers; every setting's time
+    is the median of its rounds' ratios to naive, within their range."""
     from dataclasses import replace
 
     from prefilter.bench import samples_study
@@ -90,4 +91,5 @@ def test_the_samples_study_scores_each_setting_against_the_presets_own_reference
         assert r["targets"]["flip_le_third_naive"] == (r["flip"] <= naive / 3.0)
         assert r["targets"]["flip_le_half_texture_filter"] == (r["flip"] <= 0.5 * texture)
         assert r["targets"]["time_le_1.5_naive"] == (r["time_vs_naive"] <= 1.5)
-        assert r["time_vs_naive"] > 0.0
+        low, high = r["time_vs_naive_range"]
+        assert 0.0 < low <= r["time_vs_naive"] <= high

@@ -243,3 +243,21 @@ def test_covered_pixels_leave_out_the_edges_between_objects(tmp_path):
     edge = (ball_alpha > 1e-4) & (ball_alpha < 1 - 1e-4)
     assert edge.sum() > 50  # the silhouette is there
     np.testing.assert_array_equal(covered, ~edge)
+
+
+def test_time_rounds_gives_one_time_per_round_and_more_pixels_take_longer():
+    """Renderer.time_rounds: one wall time per round and mode; 64 x the fragments of the same shader take
+    longer, and time_modes is the median of such rounds."""
+    scene = resolve_scene("noise-plane")
+    times = {}
+    for size in ((32, 32), (256, 256)):
+        renderer = Renderer(scene, size)
+        try:
+            times[size] = renderer.time_rounds(["point", "naive"], frames=5)
+            medians = renderer.time_modes(["point"], frames=5)
+        finally:
+            renderer.release()
+        assert all(len(v) == 5 and min(v) > 0.0 for v in times[size].values())
+        assert set(medians) == {"point"} and medians["point"] > 0.0
+    for mode in ("point", "naive"):
+        assert np.median(times[(256, 256)][mode]) > np.median(times[(32, 32)][mode])

@@ -313,7 +313,14 @@ class Renderer:
     def time_modes(
         self, modes: list[str], frames: int = 7, t: float = 0.0, batch: int = 3
     ) -> dict[str, float]:
-        """Median wall-clock time of one frame per mode, in milliseconds.
+        """Median wall-clock time of one frame per mode, in milliseconds (time_rounds)."""
+        rounds = self.time_rounds(modes, frames, t, batch)
+        return {mode: statistics.median(values) for mode, values in rounds.items()}
+
+    def time_rounds(
+        self, modes: list[str], frames: int = 7, t: float = 0.0, batch: int = 3
+    ) -> dict[str, list[float]]:
+        """Wall-clock milliseconds of one frame per mode, one value per round (`frames` rounds).
 
         Modes are measured round-robin (`frames` rounds; each round draws every mode its batch of frames and
         ends each batch with glFinish), so that drifts of the machine's load hit every mode alike. A mode's
@@ -341,7 +348,7 @@ class Renderer:
                     self.draw(mode, t)
                 self.ctx.finish()
                 samples[mode].append(1000.0 * (time.perf_counter() - start) / batches[mode])
-        return {mode: statistics.median(values) for mode, values in samples.items()}
+        return samples
 
     def time_reference(self, spp: int, t: float = 0.0) -> float:
         """Wall-clock milliseconds of one reference frame (all spp passes)."""
