@@ -576,7 +576,7 @@ def samples_study(scene: Scene, result, frames: int) -> list[dict]:
     table) and the others of SAMPLES_STUDY, against the preset's reference: FLIP, its ratios to naive and
     texture-filter, and the frame time as a ratio to naive. Each setting is timed round-robin with naive
     (`frames` rounds); its time is the median of the rounds' ratios, with their range: on llvmpipe the same
-    shader's ratio moved by 0.1-0.2 between runs, so a target within the range is not decided by one run."""
+    shader's ratio moved by 0.1-0.3 between runs, so a target within the range is not decided by one run."""
     material = scene.objects[0].material
     metrics = result.metrics
     naive, texture = metrics["naive"]["flip"], metrics["texture-filter"]["flip"]
