@@ -259,5 +259,11 @@ def test_time_rounds_gives_one_time_per_round_and_more_pixels_take_longer():
             renderer.release()
         assert all(len(v) == 5 and min(v) > 0.0 for v in times[size].values())
         assert set(medians) == {"point"} and medians["point"] > 0.0
+    renderer = Renderer(scene, (32, 32))
+    try:  # time_modes takes the median of whatever rounds time_rounds gives
+        renderer.time_rounds = lambda modes, *args: {m: [3.0, 1.0, 2.0, 5.0, 4.0] for m in modes}
+        assert renderer.time_modes(["point", "naive"]) == {"point": 3.0, "naive": 3.0}
+    finally:
+        renderer.release()
     for mode in ("point", "naive"):
         assert np.median(times[(256, 256)][mode]) > np.median(times[(32, 32)][mode])
