@@ -640,6 +640,10 @@ float ms_shadow(vec3 q, vec3 l, int maxSteps) {
 // 1.67 -> 1.62. Not with a transfer function: there the first step from `skip`, over-relaxed on the exact
 // gap, jumped tufts that the steps from q had met (the moss's band below the macro horizon 7.2 -> 8.9 %
 // too bright at 128 px, the sponge's band above it 6.0 -> 7.3 %).
+// Once blocked, the ray looks only for clearances below c* < 0: from a point clear by `gap` none lies nearer
+// than (gap - c*) / rate, so that is its step (over-relaxed as every march step; before, gap / rate). It
+// matters with a transfer function, whose steps do not grow: moss 2.07 -> 2.00 x naive, sponge 1.89 ->
+// 1.81 x (7 rounds), FLIP and the moss's bands unchanged; the Gaussian presets within the noise.
 #ifndef MS_PROFILE_STEP_GROWTH
 #define MS_PROFILE_STEP_GROWTH 1.3
 #endif
@@ -672,7 +676,7 @@ vec4 ms_shadowProfile(vec3 q, vec3 l, int maxSteps, float reach, float skip) {
 #endif
         float dn = abs(dot(l, ms_macroNormal(x)));
         float rate = dn + ms_slopeBound * sqrt(max(1.0 - dn * dn, 0.0));
-        t += max((gap > 0.0 ? MS_RELAX * gap : max(-gap, 0.5 * reach)) / max(rate, 1e-6), minStep);
+        t += max((gap > 0.0 ? MS_RELAX * (gap - min(least, 0.0)) : max(-gap, 0.5 * reach)) / max(rate, 1e-6), minStep);
         if (t >= slab.y) break;
     }
     if (least >= reach) return none;
