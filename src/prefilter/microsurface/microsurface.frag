@@ -683,14 +683,15 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
 #ifdef MS_TRANSFER
             MsLight light = ms_light(m, wi);
 #if MS_SHADING_SAMPLES > 1
-            // A marched row far from q (its offset times κ, ms_coarseFrequency of the samples' split, from 0.5
-            // to 2) is shadowed by Smith's statistics of the coarse surface, Φ(f/σ_c)^Λ_c(ω_i) at the row's
-            // driver f (g is monotonic), not by q's profile: the tufts are narrower than the driver's
+            // A marched row far from q (its offset times κ, ms_coarseFrequency of the samples' split, from
+            // 0.5 to 2) is shadowed by Smith's statistics of the coarse surface, Φ(f/σ_c)^Λ_c(ω_i) at the
+            // row's driver f (g is monotonic), not by q's profile: the tufts are narrower than the driver's
             // features, and the profile's first-order clearance does not reach that far (thirteenth session,
-            // 128 px against 16-spp references: the moss's band below the macro horizon 7.2 -> 4.3 % too bright, the sponge's
-            // bands 11.6 / 9.7 / 6.0 -> 9.4 / 6.4 / 5.0 %; 256 px, 64 spp: FLIP moss 0.0794 -> 0.0791, sponge
-            // 0.0853 -> 0.0841, time within the noise). Not on Gaussian reliefs: the grazing terrain's rows lost
-            // the per-pixel shadows that q's profile gets right (0.0473 -> 0.0484).
+            // 128 px against 16-spp references: the moss's band below the macro horizon 7.2 -> 4.3 % too
+            // bright, the sponge's bands 11.6 / 9.7 / 6.0 -> 9.4 / 6.4 / 5.0 %; 256 px, 64 spp: FLIP moss
+            // 0.0794 -> 0.0791, sponge 0.0853 -> 0.0841, time within the noise). Not on Gaussian reliefs: the
+            // grazing terrain's rows lost the per-pixel shadows that q's profile gets right (0.0473 ->
+            // 0.0484).
             float own = row == 0 ? 1.0 : 1.0 - smoothstep(0.5, 2.0, length(lag) * ms_coarseFrequency);
             lit = mix(ms_visibility(s.driver, sqrt(footprint.marchedVariance), light.lambdaIC), lit, own);
 #endif
