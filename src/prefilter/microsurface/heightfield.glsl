@@ -79,6 +79,10 @@ float ms_coarseFrequency;  // sqrt(Σ w² a² f⁴ / Σ w² a² f²): how fast t
 float ms_maskingSlopeVariance;        // of the whole surface
 float ms_coarseMaskingSlopeVariance;  // of the coarse (rendered) surface
 float ms_textureVariance;  // σ² of the unresolved texture octaves
+// The octaves up to the last one of non-zero weight, height and texture (ms_setWeightsAbove can leave the
+// finest ones wholly to the statistics): the shading samples' loops over the rendered surface stop there.
+int ms_weightedHeightOctaves = MS_MAX_OCTAVES;
+int ms_weightedTextureOctaves = MS_MAX_OCTAVES;
 float ms_heightBound;      // max |h_c|: the slab the marcher searches
 float ms_slopeBound;       // step-size bound of |∇h_c|
 int ms_steps = 0;          // march steps taken by this fragment (the march-steps diagnostic)
@@ -126,8 +130,10 @@ vec3 ms_splitFractions(vec3 jx, vec3 jy) {
     return ns_splitFractions(dot(jx, jx), dot(jy, jy));
 }
 
-// full = true: every octave is real geometry (point mode and each reference pass).
-void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
+// full = true: every octave is real geometry (point mode and each reference pass). An octave whose weight
+// would be below floorWeight gets 0: all of its variance goes to the statistics, and its gradient to none of
+// the linear or shading parts.
+void ms_setWeightsAbove(vec3 dpdx, vec3 dpdy, bool full, float floorWeight) {
     ms_heightVariance = 0.0;
     ms_heightResidual = 0.0;
     ms_slopeVariance = 0.0;
@@ -143,6 +149,8 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
     vec3 lx = ms_latticeFromObject * dpdx;
     vec3 ly = ms_latticeFromObject * dpdy;
     float footprint2 = dot(lx, lx) + dot(ly, ly);  // ρ1² + ρ2² in lattice units of frequency 1
+    ms_weightedHeightOctaves = 0;
+    ms_weightedTextureOctaves = 0;
     for (int i = 0; i < MS_WEIGHT_SLOTS; ++i) {
         bool height = i < MS_MAX_OCTAVES;
         int k = height ? i : i - MS_MAX_OCTAVES;
@@ -155,18 +163,23 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
         vec2 af = ms_octave[i];
         vec3 fractions = ms_splitFractions(af.y * lx, af.y * ly);  // (β, β₁, γ), one evaluation
         float w = full ? 1.0 : ms_meanFraction(fractions);
+        if (w < floorWeight) w = 0.0;
+        if (w > 0.0) {
+            if (height) ms_weightedHeightOctaves = k + 1;
+            else ms_weightedTextureOctaves = k + 1;
+        }
         ms_weight[i] = w;
         float residual = (1.0 - w * w) * af.x * af.x;
         if (height) {
             ms_heightVariance += residual * MS_NOISE_VARIANCE;
             // the linear part's expected variance over a box footprint, γ² a² (ρ1² + ρ2²) Var(∂n) / 12, is
             // taken out of the residual (and given back per point by ms_fractalGradLinear's gradient)
-            float gamma = full ? 0.0 : fractions.z;
+            float gamma = full || w <= 0.0 ? 0.0 : fractions.z;
             ms_linearWeight[i] = gamma;
             float linear = gamma * gamma * af.x * af.x * MS_GRADIENT_VARIANCE * af.y * af.y * footprint2 / 12.0;
             ms_heightResidual += max(residual * MS_NOISE_VARIANCE - linear, 0.0);
             ms_slopeVariance += residual * af.y * af.y * MS_GRADIENT_VARIANCE;
-            float slopeWeight = full ? 1.0 : mix(fractions.y, fractions.x, MS_SLOPE_WEIGHT_GATE * ms_reliefGate);
+            float slopeWeight = full ? 1.0 : (w <= 0.0 ? 0.0 : mix(fractions.y, fractions.x, MS_SLOPE_WEIGHT_GATE * ms_reliefGate));
             ms_slopeWeight[i] = slopeWeight;
             ms_shadingSlopeVariance += (1.0 - slopeWeight * slopeWeight) * af.x * af.x * af.y * af.y * MS_GRADIENT_VARIANCE;
             ms_coarseHeightVariance += w * w * af.x * af.x * MS_NOISE_VARIANCE;
@@ -189,10 +202,15 @@ void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
 #endif
 }
 
+void ms_setWeights(vec3 dpdx, vec3 dpdy, bool full) {
+    ms_setWeightsAbove(dpdx, dpdy, full, 0.0);
+}
+
 // What the marcher and the shadow rays read of a split (ms_setWeights): saved, a split is restored with
 // register moves instead of a second pass of ms_setWeights over every octave.
 struct MsSplit {
     float weight[MS_WEIGHT_SLOTS];
+    ivec2 weightedOctaves;
     float heightBound;
     float slopeBound;
     float transferSigma;
@@ -203,11 +221,14 @@ MsSplit ms_saveSplit() {
 #ifdef MS_TRANSFER
     transferSigma = ms_transferSigma;
 #endif
-    return MsSplit(ms_weight, ms_heightBound, ms_slopeBound, transferSigma);
+    return MsSplit(ms_weight, ivec2(ms_weightedHeightOctaves, ms_weightedTextureOctaves), ms_heightBound, ms_slopeBound,
+                   transferSigma);
 }
 
 void ms_restoreSplit(MsSplit split) {
     ms_weight = split.weight;
+    ms_weightedHeightOctaves = split.weightedOctaves.x;
+    ms_weightedTextureOctaves = split.weightedOctaves.y;
     ms_heightBound = split.heightBound;
     ms_slopeBound = split.slopeBound;
 #ifdef MS_TRANSFER
