@@ -565,7 +565,7 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 offsets[MS_RELIEF_RAYS], int c
     float minStep = 2e-4 * max(ms_heightBound, 1e-6);
     // Sub-ray j is held in scalars (its offsets, exit, floor, and its hit until the next one starts): read and
     // written through the dynamic index j, the arrays stayed in memory on llvmpipe, at every iteration.
-    // phase 0: march sub-ray j; 1: refine its crossing in `bracket`; 3: sub-ray j is done, and the next one
+    // phase 0: march sub-ray j; 1: refine its crossing in `bracket`; 2: sub-ray j is done, and the next one
     // starts where it crossed or left the slab: in the interval [tPrev, t], with its gaps at both ends
     // those of sub-ray j plus the difference in altitude (exact on a plane, where they pass over the same
     // points; the gap at t was evaluated already, and its evaluation again cost one more iteration)
@@ -583,10 +583,10 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 offsets[MS_RELIEF_RAYS], int c
     vec4 bracket = vec4(t, gap, t, gap);
     if (gap <= 0.0) {  // starts inside: the hit is the entry itself
         hit = t;
-        phase = 3;
+        phase = 2;
     }
     for (int i = 0; i < maxSteps; ++i) {
-        if (phase == 3) {
+        if (phase == 2) {
             for (int k = 0; k < MS_RELIEF_RAYS; ++k) {
                 hits[k] = k == j ? hit : hits[k];
             }
@@ -620,7 +620,7 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 offsets[MS_RELIEF_RAYS], int c
             refined += 1;
             if (refined >= (j == 0 ? 5 : 2)) {
                 hit = ms_secant(bracket);
-                phase = 3;
+                phase = 2;
             }
         } else {
             tPrev = t;
@@ -634,17 +634,17 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 offsets[MS_RELIEF_RAYS], int c
             } else if (t >= exit) {  // left the slab: float error at a thin slab's floor, or a miss
                 hit = onFloor ? t : -1.0;
                 gapEnd = g;
-                phase = 3;
+                phase = 2;
             } else {
                 gap = g;
             }
         }
-        if (phase == 3 && j + 1 >= count) break;  // at the end of the body (MS_MAX_OCTAVES)
+        if (phase == 2 && j + 1 >= count) break;  // at the end of the body (MS_MAX_OCTAVES)
     }
     // the last sub-ray done stores its hit; those not reached ran out of steps: a near miss rather than a hole
     float last = phase == 1 ? ms_secant(bracket) : t;
     for (int k = 0; k < MS_RELIEF_RAYS; ++k) {
-        if (k >= j && k < count) hits[k] = k == j && phase == 3 ? hit : last;
+        if (k >= j && k < count) hits[k] = k == j && phase == 2 ? hit : last;
     }
 }
 
