@@ -179,7 +179,8 @@ void ms_setWeightsAbove(vec3 dpdx, vec3 dpdy, bool full, float floorWeight) {
             float linear = gamma * gamma * af.x * af.x * MS_GRADIENT_VARIANCE * af.y * af.y * footprint2 / 12.0;
             ms_heightResidual += max(residual * MS_NOISE_VARIANCE - linear, 0.0);
             ms_slopeVariance += residual * af.y * af.y * MS_GRADIENT_VARIANCE;
-            float slopeWeight = full ? 1.0 : (w <= 0.0 ? 0.0 : mix(fractions.y, fractions.x, MS_SLOPE_WEIGHT_GATE * ms_reliefGate));
+            float slopeWeight = full ? 1.0 : mix(fractions.y, fractions.x, MS_SLOPE_WEIGHT_GATE * ms_reliefGate);
+            if (w <= 0.0) slopeWeight = 0.0;  // below the floor: the octave shades through the statistics alone
             ms_slopeWeight[i] = slopeWeight;
             ms_shadingSlopeVariance += (1.0 - slopeWeight * slopeWeight) * af.x * af.x * af.y * af.y * MS_GRADIENT_VARIANCE;
             ms_coarseHeightVariance += w * w * af.x * af.x * MS_NOISE_VARIANCE;
