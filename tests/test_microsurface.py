@@ -407,9 +407,10 @@ def test_a_footprint_least_step_finds_the_first_hit_to_within_that_step_in_fewer
 def test_column_march_finds_every_sub_rays_first_hit(elevation):
     """ms_marchColumn marches sub-rays o + t (d + b_k up) together, evaluating the relief once per step
     and starting each from the interval where the one below it crossed. Each sub-ray's hit equals a dense
-    scan's first crossing along that sub-ray alone (the offsets span 0.02 rad, a pixel at about 5 px of
-    a 256 px, 40° view, so sub-rays meet different ridges often at low elevations)."""
-    offsets = (-0.01, -0.003, 0.004, 0.01)
+    scan's first crossing along that sub-ray alone (the offsets, lowest + k stride, span 0.02 rad, a pixel
+    at about 5 px of a 256 px, 40° view, so sub-rays meet different ridges often at low elevations)."""
+    lowest, stride = -0.01, 0.02 / 3
+    offsets = [lowest + k * stride for k in range(4)]
     o, d = _descending_rays(elevation)
     got = glsl_eval(
         "columnTest(o, d)",
@@ -419,8 +420,8 @@ def test_column_march_finds_every_sub_rays_first_hit(elevation):
         defines={"MS_RELIEF_RAYS": 4},
         uniforms=_uniforms(),
         prelude="vec4 columnTest(vec3 o, vec3 d) { ms_setWeights(vec3(0.0), vec3(0.0), true);"
-        f" vec2 offsets[4] = vec2[4]({', '.join(f'vec2(0.0, {b})' for b in offsets)});"
-        " float hits[4]; ms_marchColumn(o, d, vec3(0.0, 1.0, 0.0), offsets, 4, 768, hits);"
+        " float hits[4];"
+        f" ms_marchColumn(o, d, vec3(0.0, 1.0, 0.0), vec2(0.0, {lowest}), vec2(0.0, {stride}), 4, 768, hits);"
         " return vec4(hits[0], hits[1], hits[2], hits[3]); }",
     )
     for k, b in enumerate(offsets):  # each sub-ray in its own parametrisation, t per unit of d + b up

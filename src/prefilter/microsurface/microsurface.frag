@@ -825,21 +825,20 @@ void main() {
     // samples (as on the plane) took the terrains back up (irradiance 0.0414): a marched row is a visible
     // point already, so its facets' projected area is not a weight again.
     int rays = ms_reliefParallax > 1.0 / float(MS_RELIEF_RAYS) ? MS_RELIEF_RAYS : 1;
-    vec2 offsets[MS_RELIEF_RAYS];  // (origin, direction) offsets along up, ascending
-    for (int k = 0; k < MS_RELIEF_RAYS; ++k) {
-        float f = extent * ((float(k) + 0.5) / float(rays) - 0.5);
-        offsets[k] = k < rays ? (perspective ? vec2(0.0, f) : vec2(f, 0.0)) : vec2(0.0);
-    }
+    // sub-ray k's (origin, direction) offsets along up: lowest + k stride, spread evenly over the extent
+    vec2 across = perspective ? vec2(0.0, extent) : vec2(extent, 0.0);
+    vec2 lowest = (0.5 / float(rays) - 0.5) * across, stride = across / float(rays);
     float hits[MS_RELIEF_RAYS];
-    ms_marchColumn(o, d, up, offsets, rays, MS_MAX_STEPS, hits);
+    ms_marchColumn(o, d, up, lowest, stride, rays, MS_MAX_STEPS, hits);
     float distance = perspective ? length(p0 - o) : 1.0;  // offsets of the direction move the macro point by this
     int first = -1;
     ms_rows = 0;
     for (int k = 0; k < MS_RELIEF_RAYS; ++k) {
         if (hits[k] >= 0.0) {  // else a sub-ray past the silhouette
-            vec3 dk = d + offsets[k].y * up;
-            ms_rowPoint[ms_rows] = o + offsets[k].x * up + hits[k] * dk;
-            ms_rowMacro[ms_rows] = p0 + (offsets[k].x + distance * offsets[k].y) * up;
+            vec2 offset = lowest + float(k) * stride;
+            vec3 dk = d + offset.y * up;
+            ms_rowPoint[ms_rows] = o + offset.x * up + hits[k] * dk;
+            ms_rowMacro[ms_rows] = p0 + (offset.x + distance * offset.y) * up;
             if (first < 0) first = k;
             ms_rows += 1;
         }
@@ -859,9 +858,10 @@ void main() {
         axisX = -c.y * dpdx + c.x * dpdy;
         axisY = c.x * dpdx + c.y * dpdy;
     }
-    vec3 df = d + offsets[first].y * up;
+    vec2 firstOffset = lowest + float(first) * stride;
+    vec3 df = d + firstOffset.y * up;
     float len = length(df);
-    vec3 radiance = ms_shade(o + offsets[first].x * up, df / len, hits[first] * len, p0, axisXMacro, axisYMacro, axisX,
+    vec3 radiance = ms_shade(o + firstOffset.x * up, df / len, hits[first] * len, p0, axisXMacro, axisYMacro, axisX,
                              axisY, MS_RELIEF_CLOSING * ms_reliefGate);
 #else
     float t = ms_march(o, d, slab, MS_MAX_STEPS, true);
