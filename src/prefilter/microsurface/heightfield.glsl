@@ -545,10 +545,13 @@ float ms_march(vec3 o, vec3 d, vec3 slab, int maxSteps, bool primary) {
 // micro-irradiance-terrain 1.57 -> 1.54, micro-heights-terrain 1.35 -> 1.33, micro-moss-sphere 2.02 -> 1.95-2.00.
 // Since the fifteenth session the next sub-ray's offsets and slab exit are worked out when it starts (from
 // `lowest` and `stride`), not kept in arrays for every sub-ray: less state through the loop, which every
-// march step carries across its octave sum. The same images, bit for bit; 256 px, time ÷ naive, medians of
-// 9-15 round-robin rounds in two runs: micro-irradiance-terrain 1.53-1.56 -> 1.47-1.51, micro-slopes-terrain
-// 1.33 -> 1.28; within the noise on micro-heights-sphere (1.55 -> 1.53; its relief never asks for a column),
-// micro-snake-sphere (1.65-1.70 -> 1.63-1.66), micro-moss-sphere (2.03 -> 2.00) and micro-heights-terrain.
+// march step carries across its octave sum, and a finished sub-ray's hit is stored at its index, not
+// by a loop over every slot: llvmpipe does not unroll these loops, so each ran as a loop, over arrays in
+// memory, at every iteration. The same images, bit for bit; 256 px, time ÷ naive, medians of 9-15
+// round-robin rounds: micro-irradiance-terrain 1.53-1.56 -> 1.47-1.51 (the slab exits, two runs) -> 1.44-1.46
+// (the store), micro-slopes-terrain 1.33 -> 1.28 (the slab exits); within the noise on micro-heights-sphere
+// (1.55 -> 1.53; its relief never asks for a column), micro-snake-sphere (1.65-1.70 -> 1.63-1.66),
+// micro-moss-sphere (2.03 -> 2.00) and micro-heights-terrain.
 // hits[k]: sub-ray k's t (in its own parametrisation, |d + b_k up| per unit), or -1 where it misses; as
 // ms_march, a sub-ray that runs out of steps returns where it got to.
 #ifndef MS_RELIEF_RAYS
@@ -586,9 +589,7 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 lowest, vec2 stride, int count
     }
     for (int i = 0; i < maxSteps; ++i) {
         if (phase == 2) {
-            for (int k = 0; k < MS_RELIEF_RAYS; ++k) {
-                hits[k] = k == j ? hit : hits[k];
-            }
+            hits[j] = hit;
             j += 1;
             if (j >= count) break;
             vec2 next = offset + stride;
