@@ -526,18 +526,28 @@ float ms_march(vec3 o, vec3 d, vec3 slab, int maxSteps, bool primary) {
 }
 
 // --- A column of sub-pixel rays (beyond the paper; surface-filter) ------------------------------------
+// ms_slab of the column's sub-ray with offsets (a, b), o + a up + t (d + b up) (below), t in its own
+// parametrisation.
+vec3 ms_subRaySlab(vec3 o, vec3 d, vec3 up, vec2 offset) {
+    vec3 dk = d + offset.y * up;
+    float len = length(dk);
+    vec3 slab = ms_slab(o + offset.x * up, dk / len, ms_heightBound);
+    return vec3(slab.xy / len, slab.z);
+}
+
 // Where the coarse relief stands out of the pixel, one ray decides which ridge the whole pixel shows, and
 // the relief's edges alias (most of surface-filter's error on the terrains, the moss and the sponge).
-// Sub-rays through the pixel above and below its centre, in the ray's vertical plane, o + a_k up +
-// t (d + b_k up) with evenly spaced offsets (a_k, b_k) = lowest + k stride, ascending, pass over the same
-// points of the macro surface at the same t as the centre ray, only higher or lower by a_k + t b_k. So sub-ray k+1 meets the relief no sooner
-// than sub-ray k, and the column is marched as one ray: each step evaluates the gap of the lowest sub-ray
-// still above the relief; when it crosses, its hit is refined (secant) and the next one starts in the same
-// interval, where its gaps at both ends are the last one's plus the difference in altitude. A march step
-// serves every sub-ray above the lowest, and each iteration (a march step or a secant step) evaluates the
-// relief once, as ms_march does: llvmpipe runs both sides of a branch. On a plane (up = its normal) the
-// shared points are exact; on a sphere up is the normal at the pixel centre, and the sub-rays' points drift
-// apart by the normal's turn over t b_k, which each one's own evaluations take in.
+// Sub-rays through the pixel above and below its centre, in the ray's vertical plane,
+// o + a_k up + t (d + b_k up) with evenly spaced offsets (a_k, b_k) = lowest + k stride, ascending, pass
+// over the same points of the macro surface at the same t as the centre ray, only higher or lower by a_k +
+// t b_k. So sub-ray k+1 meets the relief no sooner than sub-ray k, and the column is marched as one ray:
+// each step evaluates the gap of the lowest sub-ray still above the relief; when it crosses, its hit is
+// refined (secant) and the next one starts in the same interval, where its gaps at both ends are the last
+// one's plus the difference in altitude. A march step serves every sub-ray above the lowest, and each
+// iteration (a march step or a secant step) evaluates the relief once, as ms_march does: llvmpipe runs both
+// sides of a branch. On a plane (up = its normal) the shared points are exact; on a sphere up is the normal
+// at the pixel centre, and the sub-rays' points drift apart by the normal's turn over t b_k, which each
+// one's own evaluations take in.
 // Until the fourteenth session a sub-ray's start evaluated its gap at the interval's end again (an iteration
 // of its own, near the relief, where every octave is summed), and the sub-ray's offsets, exit and hit were
 // read and written through the dynamic index j (arrays that llvmpipe keeps in memory). Without both (FLIP
@@ -561,9 +571,7 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 lowest, vec2 stride, int count
                     out float hits[MS_RELIEF_RAYS]) {
     for (int k = 0; k < MS_RELIEF_RAYS; ++k) hits[k] = -1.0;
     vec2 offset = lowest;
-    vec3 d0 = d + offset.y * up;
-    float len0 = length(d0);
-    vec3 slab = ms_slab(o + offset.x * up, d0 / len0, ms_heightBound);
+    vec3 slab = ms_subRaySlab(o, d, up, offset);
     if (slab.y < slab.x) return;  // the lowest sub-ray misses the slab: so do the others
     float minStep = 2e-4 * max(ms_heightBound, 1e-6);
     // Sub-ray j is held in scalars (its offsets, exit from the slab, whether that is the slab's floor, where a
@@ -575,10 +583,10 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 lowest, vec2 stride, int count
     int j = 0;
     int phase = 0;
     int refined = 0;
-    float exit = slab.y / len0;
+    float exit = slab.y;
     bool onFloor = slab.z > 0.5;
     float hit = -1.0;
-    float t = slab.x / len0;
+    float t = slab.x;
     float gap = ms_gapBound(o + offset.x * up + t * (d + offset.y * up));
     float tPrev = t, gapPrev = gap;
     float gapEnd = gap;  // sub-ray j's gap at t where it crossed or left the slab (exact where <= 0)
@@ -592,16 +600,12 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 lowest, vec2 stride, int count
             hits[j] = hit;
             j += 1;
             if (j >= count) break;
-            vec2 next = offset + stride;
-            vec3 dn = d + next.y * up;
-            float ln = length(dn);
-            vec3 slabN = ms_slab(o + next.x * up, dn / ln, ms_heightBound);
-            exit = slabN.y / ln;
-            onFloor = slabN.z > 0.5;
-            vec2 rise = next - offset;
-            offset = next;
-            gapPrev += rise.x + tPrev * rise.y;
-            gap = gapEnd + rise.x + t * rise.y;
+            offset += stride;  // the sub-ray stride.x + t stride.y higher
+            slab = ms_subRaySlab(o, d, up, offset);
+            exit = slab.y;
+            onFloor = slab.z > 0.5;
+            gapPrev += stride.x + tPrev * stride.y;
+            gap = gapEnd + stride.x + t * stride.y;
             phase = gap <= 0.0 ? 1 : 0;
             refined = 0;
             bracket = vec4(tPrev, gapPrev, t, gap);
