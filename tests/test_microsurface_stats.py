@@ -516,9 +516,6 @@ def test_gauss_hermite_2d_exact_to_degree_5():
 
 
 GH_PRELUDE = """
-vec3 ghNode(vec2 mean, vec3 cov, float k) {
-    return ms_slopeNode3(mean, cov, int(k + 0.5));
-}
 vec4 visMeanCov(vec3 wo, vec2 mean, vec3 cov) {
     vec2 m;
     vec3 c;
@@ -533,28 +530,6 @@ vec2 visCovArea(vec3 wo, vec2 mean, vec3 cov) {
 }
 """
 VISIBLE = ("microsurface/visible_slopes.glsl",)
-
-
-@pytest.mark.parametrize("target", TARGETS)
-def test_glsl_slope_nodes_exact_to_degree_5(target):
-    means = np.repeat(np.array([m for m, _ in GH_CASES]), 9, axis=0)
-    covs = np.repeat(np.array([_pack(c) for _, c in GH_CASES]), 9, axis=0)
-    k = np.tile(np.arange(9.0), len(GH_CASES))
-    got = glsl_eval(
-        "ghNode(mean, cov, k)",
-        {"mean": means, "cov": covs, "k": k},
-        3,
-        includes=VISIBLE,
-        target=target,
-        prelude=GH_PRELUDE,
-    )
-    for case, (mean, cov) in enumerate(GH_CASES):
-        block = got[9 * case : 9 * case + 9].astype(np.float64)
-        _check_cubature(block[:, :2], block[:, 2], mean, cov, atol=1e-5)
-        nodes, weights = gauss_hermite_2d(mean, cov)
-        # same node order as the Python; a semidefinite Σ leaves L22 = √(Σyy − L21²) at √(float32 rounding)
-        np.testing.assert_allclose(block[:, :2], nodes, atol=1e-6 + np.sqrt(1e-6 * cov[1, 1]))
-        np.testing.assert_allclose(block[:, 2], weights, atol=1e-7)
 
 
 @pytest.mark.parametrize("target", TARGETS)

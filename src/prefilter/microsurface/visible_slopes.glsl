@@ -22,13 +22,16 @@
 //         normalisation: sigma_u m0(a) = c Phi(a) + sigma_u phi(a), c = o_z - dot(o_xy, mean); max(c, 0)
 //         when sigma_u = 0. One evaluation of the normal functions serves both (the shading samples call
 //         it for every sample; a separate area function cost a second one).
-//   vec3  ms_slopeNode3(vec2 mean, vec3 cov, int k)   (node, weight) k = 3 i + j, k in 0..8, of the
-//         3x3 Gauss-Hermite cubature against N(mean, Sigma): node 3 i + j = mean + L (z_i, z_j), L the
-//         lower Cholesky factor of Sigma (semidefinite allowed), z in {-sqrt(3), 0, sqrt(3)}, weights
-//         w_i w_j with w = (1/6, 2/3, 1/6). Exact for polynomials of degree <= 5 in each slope. One node a
-//         call, no arrays (llvmpipe keeps local arrays in memory: the shading samples loop pays for them).
+//   vec3  ms_lambertNode(vec2 mean, vec2 offset, float weight, vec3 wi)   one node of the cubature below:
+//         weight L(mean + offset) and that times offset.
 //   vec3  ms_lambertMoments(vec2 mean, vec3 cov, vec3 wi)   (E[L], Cov(s, L)) of Lambert's cosine
-//         L(s) = max(n(s)·wi, 0), n(s) = normalize(-s, 1), for slopes N(mean, Sigma), by those 9 nodes.
+//         L(s) = max(n(s)·wi, 0), n(s) = normalize(-s, 1), for slopes N(mean, Sigma), by the 3x3
+//         Gauss-Hermite cubature against N(mean, Sigma) (visible_slopes.py, gauss_hermite_2d): nodes
+//         mean + L (z_i, z_j), L the lower Cholesky factor of Sigma (semidefinite allowed), z in {-sqrt(3),
+//         0, sqrt(3)}, weights w_i w_j with w = (1/6, 2/3, 1/6); exact for polynomials of degree <= 5 in
+//         each slope. The nine nodes are written out: as a loop (llvmpipe does not unroll it) the shading
+//         samples paid 0.02-0.04x naive's frame more on micro-snake-sphere (one light, four samples; the
+//         same image), and a loop with the Cholesky factor taken out of it saved nothing.
 
 #include "microsurface/smith.glsl"
 
@@ -65,25 +68,27 @@ float ms_visibleSlopes(vec3 wo, vec2 mean, vec3 cov, out vec2 visMean, out vec3 
     return su * m.z;
 }
 
-vec3 ms_slopeNode3(vec2 mean, vec3 cov, int k) {
+// One node of the cubature: its weight times Lambert's cosine, and that times the node's offset from the mean.
+vec3 ms_lambertNode(vec2 mean, vec2 offset, float weight, vec3 wi) {
+    float cosine = weight * max(dot(normalize(vec3(-(mean + offset), 1.0)), wi), 0.0);
+    return vec3(cosine, cosine * offset);
+}
+
+vec3 ms_lambertMoments(vec2 mean, vec3 cov, vec3 wi) {
     float l11 = sqrt(max(cov.x, 0.0));
     float l21 = l11 > 0.0 ? cov.y / l11 : 0.0;
     float l22 = sqrt(max(cov.z - l21 * l21, 0.0));
     const float Z = 1.7320508076;  // sqrt(3)
-    int i = k / 3;
-    int j = k - 3 * i;
-    float zi = Z * float(i - 1);
-    float zj = Z * float(j - 1);
-    float weight = (i == 1 ? 2.0 / 3.0 : 1.0 / 6.0) * (j == 1 ? 2.0 / 3.0 : 1.0 / 6.0);
-    return vec3(mean + vec2(l11 * zi, l21 * zi + l22 * zj), weight);
-}
-
-vec3 ms_lambertMoments(vec2 mean, vec3 cov, vec3 wi) {
-    vec3 moments = vec3(0.0);
-    for (int k = 0; k < 9; ++k) {
-        vec3 node = ms_slopeNode3(mean, cov, k);
-        float cosine = node.z * max(dot(normalize(vec3(-node.xy, 1.0)), wi), 0.0);
-        moments += vec3(cosine, cosine * (node.xy - mean));
-    }
+    const float W0 = 2.0 / 3.0, W1 = 1.0 / 6.0;
+    vec2 a = Z * vec2(l11, l21), b = vec2(0.0, Z * l22);
+    vec3 moments = ms_lambertNode(mean, -a - b, W1 * W1, wi);
+    moments += ms_lambertNode(mean, -a, W1 * W0, wi);
+    moments += ms_lambertNode(mean, -a + b, W1 * W1, wi);
+    moments += ms_lambertNode(mean, -b, W0 * W1, wi);
+    moments += ms_lambertNode(mean, vec2(0.0), W0 * W0, wi);
+    moments += ms_lambertNode(mean, b, W0 * W1, wi);
+    moments += ms_lambertNode(mean, a - b, W1 * W1, wi);
+    moments += ms_lambertNode(mean, a, W1 * W0, wi);
+    moments += ms_lambertNode(mean, a + b, W1 * W1, wi);
     return moments;
 }

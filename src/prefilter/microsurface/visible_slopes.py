@@ -31,10 +31,10 @@ meaningless, or the shift is below 1e-4 σ_u). σ_u = 0 (normal view, or Σ o_xy
 (mean_vis = s̄, cov_vis = Σ) and projected_area = c⁺. The cov_vis = Σ limit is continuous: |Σ o_xy| <=
 √λ_max(Σ) σ_u and 1 − var_z → 0 as a → ∞.
 
-Gauss–Hermite cubature (`gauss_hermite_2d`, GLSL ms_slopeNode3): the tensor product of the
-probabilists' rule (order 3: nodes 0, ±√3, weights 2/3, 1/6) mapped through the Cholesky factor of Σ
-(lower triangular, robust for semidefinite Σ); node k = order·i + j takes z = (z_i, z_j). Exact for
-polynomials of degree <= 2·order − 1 in each variable (degree 5 for order 3).
+Gauss–Hermite cubature (`gauss_hermite_2d`; GLSL ms_lambertMoments writes its nine nodes out): the
+tensor product of the probabilists' rule (order 3: nodes 0, ±√3, weights 2/3, 1/6) mapped through the
+Cholesky factor of Σ (lower triangular, robust for semidefinite Σ); node k = order·i + j takes
+z = (z_i, z_j). Exact for polynomials of degree <= 2·order − 1 in each variable (degree 5 for order 3).
 
 Lambert under the slope distribution (`lambert_moments`, GLSL ms_lambertMoments): E[L] and Cov(s, L) of
 L(s) = max((−s, 1)·ω_i/|(−s, 1)|, 0), the cosine at the facet of slope s, by the same 9-node cubature. The
