@@ -236,7 +236,7 @@ def test_glsl_smith_twins(target):
         "vec4(ms_millsRho(x), ms_normalLossScaled(x))", {"x": x}, 4, includes=SMITH, target=target
     )
     want = np.stack([*mills_rho(_f32(x)), normal_loss_scaled(_f32(x))], axis=1)
-    assert np.abs(got / want - 1).max() < 2e-5  # measured 8e-6 (ρ3 near x = 1.4)
+    assert np.abs(got / want - 1).max() < 2e-5  # measured 9e-6 (ρ3 near x = 1.4), J_1 7e-6 below x = 4
 
 
 # --- height filtering -------------------------------------------------------------------------------

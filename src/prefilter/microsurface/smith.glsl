@@ -17,7 +17,12 @@
 //                              J_k(x) = int_0^inf t^k exp(-x t - t^2/2) dt: forward recurrence from the
 //                              Mills ratio for x < MS_CF_SWITCH, Laplace's continued fraction (depth
 //                              MS_CF_DEPTH) above (also used by visible_slopes.glsl).
-//   float ms_normalLossScaled(float x)   J_1(x) = (phi(x) - x Q(x)) / phi(x), x >= 0, no cancellation.
+//   float ms_normalLossScaled(float x)   J_1(x) = (phi(x) - x Q(x)) / phi(x), x >= 0, no cancellation:
+//                              1 - x J_0 below MS_LOSS_SWITCH, the continued fraction of depth
+//                              MS_LOSS_CF_DEPTH above (relative error <= 7e-6 in float32 either way). It
+//                              needs rho1 alone, and Smith's Lambda calls it for every sample and light,
+//                              so its fraction is short: llvmpipe ran MS_CF_DEPTH's 22 iterations, masked,
+//                              wherever a lane's nu passed MS_CF_SWITCH.
 //   float ms_lambda(vec3 w, vec3 cov)    Smith's Lambda (eq. under 2) = G(nu)/nu, nu = w.z/sqrt(w_xy^T
 //                              Sigma w_xy), G(nu) = phi(nu) - nu Q(nu). 0 at normal incidence and for
 //                              Sigma = 0 (-> 0 without NaN as Sigma -> 0); nu is clamped to >= 1e-4 at
@@ -32,6 +37,8 @@ const float MS_INV_SQRT2 = 0.7071067812;
 const float MS_NU_MIN = 1e-4;
 const float MS_CF_SWITCH = 1.5;
 const int MS_CF_DEPTH = 24;
+const float MS_LOSS_SWITCH = 4.0;
+const int MS_LOSS_CF_DEPTH = 4;
 
 float ms_erfcx(float x) {
     float t = 1.0 / (1.0 + 0.5 * max(x, 0.0));
@@ -79,6 +86,17 @@ float ms_normalCdf(float x) {
     return 0.5 * ms_erfc(-x * MS_INV_SQRT2);
 }
 
+// (rho1, rho2, rho3)(x) by Laplace's continued fraction of the given depth: rho_{D+1} from the fixed point of
+// rho = 1 / (x + (D + 2) rho), then down to rho_3
+vec3 ms_millsRhoFraction(float x, int depth) {
+    float r = 2.0 / (x + sqrt(x * x + 4.0 * float(depth + 2)));
+    for (int j = depth; j >= 3; --j) {
+        r = 1.0 / (x + float(j + 1) * r);
+    }
+    float r2 = 1.0 / (x + 3.0 * r);
+    return vec3(1.0 / (x + 2.0 * r2), r2, r);
+}
+
 vec3 ms_millsRho(float x) {
     x = max(x, 0.0);
     if (x < MS_CF_SWITCH) {
@@ -88,21 +106,15 @@ vec3 ms_millsRho(float x) {
         float j3 = 2.0 * j1 - x * j2;
         return vec3(j1 / j0, j2 / (2.0 * j1), j3 / (3.0 * j2));
     }
-    // rho_{D+1} from the fixed point of rho = 1 / (x + (D + 2) rho), then down to rho_3
-    float r = 2.0 / (x + sqrt(x * x + 4.0 * float(MS_CF_DEPTH + 2)));
-    for (int j = MS_CF_DEPTH; j >= 3; --j) {
-        r = 1.0 / (x + float(j + 1) * r);
-    }
-    float r2 = 1.0 / (x + 3.0 * r);
-    return vec3(1.0 / (x + 2.0 * r2), r2, r);
+    return ms_millsRhoFraction(x, MS_CF_DEPTH);
 }
 
 float ms_normalLossScaled(float x) {
     x = max(x, 0.0);
-    if (x < MS_CF_SWITCH) {
+    if (x < MS_LOSS_SWITCH) {
         return 1.0 - x * MS_SQRT_HALF_PI * ms_erfcx(x * MS_INV_SQRT2);
     }
-    float r1 = ms_millsRho(x).x;
+    float r1 = ms_millsRhoFraction(x, MS_LOSS_CF_DEPTH).x;
     return r1 / (x + r1);  // R = 1 / (x + rho1), J_1 = R rho1
 }
 
