@@ -217,6 +217,15 @@ def _driver_field_statistics(tf: TransferFunction, rng, count=9600, n=16, chunk=
     )
 
 
+@pytest.mark.parametrize("name", NAMES)
+def test_slope_gain_is_the_rms_derivative_under_the_driver(name):
+    """TransferFunction.slope_gain(σ)² = E[g′(f)²] for f ~ N(0, σ²), against adaptive quadrature (the shadow
+    profile's reach scales the driver's slope deviation by it)."""
+    tf = TRANSFER_FUNCTIONS[name]()
+    for sigma in (0.05, 0.3, 1.0):
+        assert tf.slope_gain(sigma) ** 2 == pytest.approx(_quadrature(tf, 0.0, sigma)[3], rel=1e-6), sigma
+
+
 @pytest.mark.parametrize("name", ["moss", "sponge"])
 def test_transfer_stats_against_monte_carlo(name):
     tf = TRANSFER_FUNCTIONS[name]()

@@ -160,6 +160,7 @@ class MicrosurfaceMaterial:
             uniforms["u_transferBound"] = (
                 self.transfer_scale * float(np.max(np.abs(self.transfer.g(v)))),
                 self.transfer_scale * float(np.max(np.abs(self.transfer.g_prime(v)))),
+                self.transfer_scale * self.transfer.slope_gain(np.sqrt(self.height.variance())),
             )
         if self.environment is not None:
             from prefilter.microsurface.irradiance import irradiance_sh, sh_uniform

@@ -139,6 +139,14 @@ class TransferFunction:
             near = sigmoid / (2.0 * np.sqrt(e))
         return np.where(far, 0.5 * np.exp(0.5 * np.minimum(z, 0.0)) / np.sqrt(self.params["softness"]), near)
 
+    def slope_gain(self, sigma: float) -> float:
+        """sqrt(E[g′(f)²]) for a driver f ~ N(0, σ²) (trapezoids over ±8σ, 20 001 nodes: g′ changes over
+        the softness, which polynomial rules do not resolve): at a point of a Gaussian field f and ∇f are
+        independent, so ∇h = g′(f) ∇f has this times ∇f's deviation."""
+        z = np.linspace(-8.0, 8.0, 20001)
+        density = np.exp(-0.5 * z * z) / np.sqrt(2.0 * np.pi)
+        return float(np.sqrt(np.trapezoid(self.g_prime(sigma * z) ** 2 * density, z)))
+
     def moments_integrand(self, v) -> np.ndarray:
         """(g, g², g′, g′²) at v, shape (..., 4): what the table convolves with N(μ, σ²)."""
         g, gp = self.g(v), self.g_prime(v)
