@@ -577,8 +577,8 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 lowest, vec2 stride, int count
     vec3 slab = ms_subRaySlab(o, d, up, offset);
     if (slab.y < slab.x) return;  // the lowest sub-ray misses the slab: so do the others
     float minStep = 2e-4 * max(ms_heightBound, 1e-6);
-    // Sub-ray j is held in scalars (its offsets, exit from the slab, whether that is the slab's floor, where a
-    // primary ray surely met the surface, and its hit until the next one starts).
+    // Sub-ray j is held in scalars (its offsets, its slab: the exit, and whether that is the slab's floor, where
+    // a primary ray surely met the surface; and its hit until the next one starts).
     // phase 0: march sub-ray j; 1: refine its crossing in `bracket`; 2: sub-ray j is done, and the next one
     // starts where it crossed or left the slab: in the interval [tPrev, t], with its gaps at both ends
     // those of sub-ray j plus the difference in altitude (exact on a plane, where they pass over the same
@@ -586,8 +586,6 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 lowest, vec2 stride, int count
     int j = 0;
     int phase = 0;
     int refined = 0;
-    float exit = slab.y;
-    bool onFloor = slab.z > 0.5;
     float hit = -1.0;
     float t = slab.x;
     float gap = ms_gapBound(o + offset.x * up + t * (d + offset.y * up));
@@ -605,8 +603,6 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 lowest, vec2 stride, int count
             if (j >= count) break;
             offset += stride;  // the sub-ray stride.x + t stride.y higher
             slab = ms_subRaySlab(o, d, up, offset);
-            exit = slab.y;
-            onFloor = slab.z > 0.5;
             gapPrev += stride.x + tPrev * stride.y;
             gap = gapEnd + stride.x + t * stride.y;
             phase = gap <= 0.0 ? 1 : 0;
@@ -617,7 +613,7 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 lowest, vec2 stride, int count
         vec3 dj = d + offset.y * up;
         float lj = length(dj);
         float least = ms_primaryLeastStep(minStep, t * lj) / lj;
-        float te = phase == 0 ? min(t + ms_marchStep(oj + t * dj, dj, gap, least), exit) : ms_secant(bracket);
+        float te = phase == 0 ? min(t + ms_marchStep(oj + t * dj, dj, gap, least), slab.y) : ms_secant(bracket);
         ms_steps += phase == 0 ? 1 : 0;
         float g = ms_gapBound(oj + te * dj);  // exact where <= 0
         if (phase == 1) {
@@ -636,8 +632,8 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 lowest, vec2 stride, int count
                 refined = 0;
                 bracket = vec4(tPrev, gapPrev, t, g);
                 gapEnd = g;
-            } else if (t >= exit) {  // left the slab: float error at a thin slab's floor, or a miss
-                hit = onFloor ? t : -1.0;
+            } else if (t >= slab.y) {  // left the slab: float error at a thin slab's floor, or a miss
+                hit = slab.z > 0.5 ? t : -1.0;
                 gapEnd = g;
                 phase = 2;
             } else {

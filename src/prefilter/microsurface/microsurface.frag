@@ -831,20 +831,25 @@ void main() {
     float hits[MS_RELIEF_RAYS];
     ms_marchColumn(o, d, up, lowest, stride, rays, MS_MAX_STEPS, hits);
     float distance = perspective ? length(p0 - o) : 1.0;  // offsets of the direction move the macro point by this
-    int first = -1;
     ms_rows = 0;
+    vec3 firstOrigin = o, firstDirection = d;  // row 0's sub-ray, and its hit
+    float firstHit = -1.0;
     for (int k = 0; k < MS_RELIEF_RAYS; ++k) {
         if (hits[k] >= 0.0) {  // else a sub-ray past the silhouette
             vec2 offset = lowest + float(k) * stride;
-            vec3 dk = d + offset.y * up;
-            ms_rowPoint[ms_rows] = o + offset.x * up + hits[k] * dk;
+            vec3 ok = o + offset.x * up, dk = d + offset.y * up;
+            ms_rowPoint[ms_rows] = ok + hits[k] * dk;
             ms_rowMacro[ms_rows] = p0 + (offset.x + distance * offset.y) * up;
-            if (first < 0) first = k;
+            if (ms_rows == 0) {
+                firstOrigin = ok;
+                firstDirection = dk;
+                firstHit = hits[k];
+            }
             ms_rows += 1;
         }
         if (k + 1 >= rays) break;  // at the end of the body, as heightfield.glsl's octave loops
     }
-    if (first < 0) discard;
+    if (ms_rows == 0) discard;
     ms_column = rays > 1;
     // the screen axes of ms_shade's grid (per pixel: macro, and on the relief footprint); for a column X
     // across it and Y along it, the column's screen direction c being up's, in the basis (ex, ey)
@@ -858,10 +863,8 @@ void main() {
         axisX = -c.y * dpdx + c.x * dpdy;
         axisY = c.x * dpdx + c.y * dpdy;
     }
-    vec2 firstOffset = lowest + float(first) * stride;
-    vec3 df = d + firstOffset.y * up;
-    float len = length(df);
-    vec3 radiance = ms_shade(o + firstOffset.x * up, df / len, hits[first] * len, p0, axisXMacro, axisYMacro, axisX,
+    float len = length(firstDirection);
+    vec3 radiance = ms_shade(firstOrigin, firstDirection / len, firstHit * len, p0, axisXMacro, axisYMacro, axisX,
                              axisY, MS_RELIEF_CLOSING * ms_reliefGate);
 #else
     float t = ms_march(o, d, slab, MS_MAX_STEPS, true);
