@@ -520,6 +520,34 @@ vec4 growthTest(vec3 c, vec3 delta, vec3 l) {
 )
 
 
+def _profiles_against_nearby_shadows(elevation: float, variants: dict) -> dict:
+    """For each variant (its key, the shader defines it sets): the share of 3000 nearby points q + δ whose
+    shadow read off the profile from q differs from their own exact shadow ray, the profile's steps a
+    point, and the share that the centre's own shadow gets wrong (growthTest: the filtered modes' least
+    shadow step of 1/64)."""
+    n = 3000
+    c, light = _shadow_points(n, elevation)
+    inputs = {"c": c, "delta": _nearby_offsets(n), "l": light}
+    results = {}
+    for key, defines in variants.items():
+        predicted, truth, steps, centre = _eval_shadows(
+            "growthTest(c, delta, l)", inputs, PROFILE_GROWTH_PRELUDE, defines
+        ).T
+        assert 0.2 < 1 - truth.mean() < 0.9  # low light: much shadow, some light
+        results[key] = ((predicted != truth).mean(), steps.mean(), (centre != truth).mean())
+    return results
+
+
+def _assert_as_right_in_fewer_steps(results: dict, before, after, more_wrong: float, step_ratio: float):
+    """Variant `after` gets at most `more_wrong` more of the points wrong than `before`, and under 3/4 of
+    what the centre's own shadow gets wrong, in under step_ratio of the steps."""
+    wrong_before, steps_before, wrong_centre = results[before]
+    wrong_after, steps_after, _ = results[after]
+    assert wrong_after <= wrong_before + more_wrong, results
+    assert wrong_after <= 0.75 * wrong_centre, results
+    assert steps_after < step_ratio * steps_before, results
+
+
 @pytest.mark.parametrize("elevation", [5.0, 10.0])
 def test_a_blocked_profile_growing_its_steps_keeps_the_nearby_shadows_in_fewer_steps(elevation):
     """ms_shadowProfile's least step grows by MS_PROFILE_STEP_GROWTH a step once the ray from q is
@@ -531,22 +559,10 @@ def test_a_blocked_profile_growing_its_steps_keeps_the_nearby_shadows_in_fewer_s
     12.0 %; 0.58x and 0.72x the steps. With the hard slope bound: 4.0 -> 4.7 % and 6.6 -> 7.1 %, 0.50x
     and 0.65x the steps; before the profile started at `skip` and stepped to its least clearance once
     blocked: 3.5 -> 4.4 % and 6.2 -> 6.9 %, 0.43x and 0.60x)."""
-    n = 3000
-    c, light = _shadow_points(n, elevation)
-    inputs = {"c": c, "delta": _nearby_offsets(n), "l": light}
-    results = {}
-    for growth in (1.0, 1.3):
-        got = _eval_shadows(
-            "growthTest(c, delta, l)", inputs, PROFILE_GROWTH_PRELUDE, {"MS_PROFILE_STEP_GROWTH": growth}
-        )
-        predicted, truth, steps, centre = got.T
-        assert 0.2 < 1 - truth.mean() < 0.9  # grazing light: much shadow, some light
-        results[growth] = ((predicted != truth).mean(), steps.mean(), (centre != truth).mean())
-    wrong_constant, steps_constant, wrong_centre = results[1.0]
-    wrong_growing, steps_growing, _ = results[1.3]
-    assert wrong_growing <= wrong_constant + 0.012, results
-    assert wrong_growing <= 0.75 * wrong_centre, results
-    assert steps_growing < 0.75 * steps_constant, results
+    results = _profiles_against_nearby_shadows(
+        elevation, {growth: {"MS_PROFILE_STEP_GROWTH": growth} for growth in (1.0, 1.3)}
+    )
+    _assert_as_right_in_fewer_steps(results, 1.0, 1.3, more_wrong=0.012, step_ratio=0.75)
 
 
 @pytest.mark.parametrize("elevation", [5.0, 10.0, 20.0])
@@ -558,25 +574,10 @@ def test_the_profiles_statistical_slope_bound_keeps_the_nearby_shadows_in_fewer_
     well below the centre's own shadow's errors, in under 0.85x the steps (measured: 4.67 -> 4.67 %,
     7.10 -> 7.37 % and 5.93 -> 6.03 % wrong at 5, 10 and 20 degrees; 0.78x, 0.77x and 0.76x the steps;
     3 deviations: 4.83, 7.57 and 6.40 %)."""
-    n = 3000
-    c, light = _shadow_points(n, elevation)
-    inputs = {"c": c, "delta": _nearby_offsets(n), "l": light}
-    results = {}
-    for deviations in (1e30, 4.0):  # the hard bound is the smaller of the two at 1e30
-        got = _eval_shadows(
-            "growthTest(c, delta, l)",
-            inputs,
-            PROFILE_GROWTH_PRELUDE,
-            {"MS_PROFILE_SLOPE_DEVIATIONS": deviations},
-        )
-        predicted, truth, steps, centre = got.T
-        assert 0.2 < 1 - truth.mean() < 0.9  # low light: much shadow, some light
-        results[deviations] = ((predicted != truth).mean(), steps.mean(), (centre != truth).mean())
-    wrong_hard, steps_hard, wrong_centre = results[1e30]
-    wrong_statistical, steps_statistical, _ = results[4.0]
-    assert wrong_statistical <= wrong_hard + 0.01, results
-    assert wrong_statistical <= 0.75 * wrong_centre, results
-    assert steps_statistical < 0.85 * steps_hard, results
+    results = _profiles_against_nearby_shadows(  # the hard bound is the smaller of the two at 1e30
+        elevation, {deviations: {"MS_PROFILE_SLOPE_DEVIATIONS": deviations} for deviations in (1e30, 4.0)}
+    )
+    _assert_as_right_in_fewer_steps(results, 1e30, 4.0, more_wrong=0.01, step_ratio=0.85)
 
 
 SHADOW_STEP_PRELUDE = """
