@@ -1042,6 +1042,43 @@ def test_slope_colours_under_an_environment_keep_the_reference_mean(tmp_path):
     assert flip["surface-filter"] < 0.6 * flip["texture-filter"], flip
 
 
+def test_a_one_colour_map_renders_as_its_filtered_table_in_every_mode():
+    """A colour map of one colour is that colour under any distribution of its argument, so the material
+    binds it as a constant (MS_HEIGHT_CONSTANT) and skips the table and its filtering (on the irradiance
+    terrain surface-filter's D_h and box-filtered reads cost 0.04 x naive's frame). Oracle: the same
+    table through the filtering path, made to take it by a change of 1e-6 in one entry."""
+    from dataclasses import replace
+
+    from prefilter.colormap.table import ColourTable
+    from prefilter.gl.render import Renderer
+    from prefilter.scene import resolve_scene
+
+    base = resolve_scene("micro-irradiance-terrain")
+    material = base.objects[0].material
+    table = material.maps["height"].table
+    assert table.is_constant()
+    entries = table.entries.copy()
+    entries[-1, 0] += 1e-6
+    varied = ColourTable(entries, table.wrap)
+    assert not varied.is_constant()
+    maps = {**material.maps, "height": replace(material.maps["height"], table=varied)}
+    assert "MS_HEIGHT_CONSTANT" in material.defines(None) and "MS_HEIGHT_MAP" not in material.defines(None)
+    assert "MS_HEIGHT_MAP" in replace(material, maps=maps).defines(None)
+    images = {}
+    for name, m in (("constant", material), ("table", replace(material, maps=maps))):
+        scene = replace(base, objects=[replace(base.objects[0], material=m)])
+        renderer = Renderer(scene, (96, 72))
+        try:
+            images[name] = {
+                mode: renderer.render(mode) for mode in ("point", "naive", "texture-filter", "surface-filter")
+            }
+        finally:
+            renderer.release()
+    for mode, image in images["constant"].items():
+        assert image[..., 3].mean() > 0.5
+        assert np.abs(image - images["table"][mode]).max() < 1e-4, mode
+
+
 def _macro_sphere_cosine(scene, size):
     """n·l of the unit macro sphere at each pixel centre (NumPy ray casting; NaN off the sphere)."""
     w, h = size

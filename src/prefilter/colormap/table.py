@@ -204,6 +204,10 @@ class ColourTable:
             entries = colours[lower] + t[:, None] * (colours[hi] - colours[lower])
         return cls(entries.astype(np.float32), wrap)
 
+    def is_constant(self) -> bool:
+        """Whether every entry is the same colour (any filter of the table returns that colour)."""
+        return bool(np.all(self.entries == self.entries[0]))
+
     def premultiplied(self) -> ColourTable:
         """The same table with rgb * alpha (what renderers upload; filters average premultiplied colour)."""
         entries = self.entries.astype(np.float64)

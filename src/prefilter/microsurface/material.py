@@ -28,7 +28,8 @@ Scene TOML (under [object.material], type = "microsurface"):
       (heightfield.glsl ms_marchColumn), each row's samples placed across the column on a plane through its
       own hit; false: the whole grid on the plane through the centre ray's hit
   [height_colour], [slope_colour], [texture_colour]: scale = 1, offset = 0 (argument = scale·x + offset),
-      [....colour_table] as for Hart's model, [....preconvolved] as for the gaussian mode
+      [....colour_table] as for Hart's model, [....preconvolved] as for the gaussian mode; a table with
+      one colour throughout is that colour in every mode, with no table and no filtering
   [transfer]         function = "moss" | "sponge" | "linear" (microsurface/transfer.py), its parameters,
                      scale (h = scale · g(f), with f the [height] fractal in driver units)
   [irradiance]       environment = "file.exr" (equirectangular, linear; replaces lights and ambient),
@@ -106,7 +107,11 @@ class MicrosurfaceMaterial:
         return PACKAGE_ROOT / "glsl/common/surface.vert", SHADER_DIR / "microsurface.frag"
 
     def defines(self, options) -> dict[str, object]:
-        defines: dict[str, object] = {f"MS_{name.upper()}_MAP": True for name in self.maps}
+        # a constant colour map is its own filtered value under any distribution: no table, no filtering
+        defines: dict[str, object] = {
+            f"MS_{name.upper()}_{'CONSTANT' if cmap.table.is_constant() else 'MAP'}": True
+            for name, cmap in self.maps.items()
+        }
         if self.texture is not None:
             defines["MS_TEXTURE_FRACTAL"] = True
         if self.macro == "sphere":
@@ -134,6 +139,9 @@ class MicrosurfaceMaterial:
         owned: list = []  # everything with a release() that this material created
         for name, cmap in self.maps.items():
             table = cmap.table.premultiplied()
+            if table.is_constant():
+                uniforms[f"u_{name}Constant"] = tuple(float(v) for v in table.entries[0])
+                continue
             pre = preconvolve(table, **cmap.preconvolved)
             point = table.upload(ctx)
             owned.append(point)

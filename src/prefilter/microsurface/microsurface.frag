@@ -13,7 +13,7 @@
 //                        the visible-slope distribution D_s (§5.2), Lambert averaged over D_s, combinations (§6)
 // Lighting: directional lights sh_lightDirection/Colour (world) with shadows, plus unshadowed ambient;
 // or, with MS_IRRADIANCE, an environment's irradiance in 9 SH coefficients (§5.3) and nothing else.
-// Colour maps (defines MS_HEIGHT_MAP, MS_SLOPE_MAP, MS_TEXTURE_MAP): argument = scale·x + offset with
+// Colour maps (defines MS_HEIGHT_MAP, MS_SLOPE_MAP, MS_TEXTURE_MAP; _CONSTANT for a one-colour map): argument = scale·x + offset with
 // x = h + ρ r (height), s·d (slope along the tangent direction d), r (texture); combined as
 // κ₀C₀ + κ₁C_h + κ₂C_s, or with u_slopeOver = 1 as the premultiplied slope layer over κ₀C₀ + κ₁C_h.
 
@@ -125,6 +125,11 @@ uniform int u_textureWrap;
 uniform vec2 u_textureMap;  // @param -4..4 Texture map: (scale, offset), the texture colour table's argument f = scale r + offset, r the texture fractal; every mode follows; for clamp tables the filtered modes are exact while f stays within u_textureRange.xy and |scale| times the deviation stays below u_textureRange.z (the preconvolved bake's range)
 uniform vec3 u_kappa;  // @param 0..2 Weights: (κ₀, κ₁, κ₂) of the texture, height and slope colours in κ₀C₀ + κ₁C_h + κ₂C_s (κ₂ unused when the slope layer is over the rest); every mode follows
 uniform int u_slopeOver;
+// A constant colour map (MS_HEIGHT_CONSTANT, MS_SLOPE_CONSTANT, MS_TEXTURE_CONSTANT instead of its _MAP define):
+// its colour, linear RGB premultiplied by alpha, and alpha; every mode uses it as it is.
+uniform vec4 u_heightConstant;
+uniform vec4 u_slopeConstant;
+uniform vec4 u_textureConstant;
 uniform sampler2D u_heightFilteringTable;  // @table the moments of D_h (Heitz et al. 2014 eqs. 14-17): one row of n = width texels, texel i at t = i/(n - 1) with t = log(1 + L)/log(1 + 10000) (MS_HF_LMAX), L = Λ_o + Λ_i (Smith), read LINEAR at u = (t (n - 1) + 0.5)/n (CLAMP_TO_EDGE: L > 10000 reads the last texel); RG: (μ_d/σ_h, σ_d/σ_h), the mean and standard deviation of the heights that are seen and lit, in units of the height deviation σ_h; no MIP; not colours
 
 out vec4 o_colour;
@@ -426,6 +431,15 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
 #endif
     vec2 dir = u_slopeDirection;
     vec4 c0 = vec4(0.0), ch = vec4(0.0), cs = vec4(0.0);
+#ifdef MS_TEXTURE_CONSTANT
+    c0 = u_textureConstant;
+#endif
+#ifdef MS_HEIGHT_CONSTANT
+    ch = u_heightConstant;
+#endif
+#ifdef MS_SLOPE_CONSTANT
+    cs = u_slopeConstant;
+#endif
 
 #if !defined(MODE_SURFACE_FILTER)
     MsSurface s = ms_surfaceAt(p, frame);
