@@ -115,6 +115,43 @@ def test_cm_gaussian_matches_the_bake_and_the_exact_convolution(wrap, target):
     assert err[wide].max() < 5e-3 and np.median(err[inside]) < 5e-3
 
 
+def _derivative_quadrature(table: ColourTable, mu: float, sigma: float) -> np.ndarray:
+    """∂C̄/∂μ = ∫ C(v) (v - μ)/σ² N(v; μ, σ²) dv by adaptive quadrature between the table's entry edges."""
+    lo, hi = mu - 9 * sigma, mu + 9 * sigma
+    inner = np.arange(np.floor(lo * table.n) + 1, np.ceil(hi * table.n)) / table.n
+    edges = np.concatenate([[lo], inner[(inner > lo) & (inner < hi)], [hi]])
+    out = np.zeros(4)
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        weight = quad(lambda v: (v - mu) / sigma**2 * norm.pdf(v, mu, sigma), a, b)[0]
+        out += table.point(0.5 * (a + b)).astype(np.float64) * weight  # C is constant between edges
+    return out
+
+
+@pytest.mark.parametrize("wrap", ["modulo", "clamp"])
+def test_the_derivative_map_is_the_preconvolved_maps_slope(wrap):
+    """surface-filter's slope colours under a light read ∂C̄/∂μ (microsurface.frag,
+    ms_slopeColourDerivative) from PreconvolvedMap.derivative_data through cm_gaussian, as it reads C̄."""
+    table = _table(wrap, 64)
+    baked = preconvolve(table, n_sigma=64, sigma_max=0.5)
+    texture = baked.upload_derivative(gl_context())
+    rng = np.random.default_rng(11)
+    lo, hi = baked.mu_range
+    mu = rng.uniform(lo + 0.05, hi - 0.05, 40) if wrap == "clamp" else rng.uniform(-0.5, 1.5, 40)
+    sigma = rng.uniform(4.0 / table.n, 0.5, 40)  # a few table entries and more: C̄ is smooth on a texel
+    try:
+        got = _eval_map(
+            f"cm_gaussian(map, mu, sigma, {table.wrap_code}, range)",
+            {"mu": mu, "sigma": sigma},
+            baked,
+            texture,
+        )
+    finally:
+        texture.release()
+    exact = np.array([_derivative_quadrature(table, m, v) for m, v in zip(mu, sigma, strict=True)])
+    scale = np.abs(exact).max()
+    assert np.abs(got - exact).max() < 0.02 * scale, (np.abs(got - exact).max(), scale)
+
+
 def _box_quadrature(table: ColourTable, mu: float, width: float, sigma: float) -> np.ndarray:
     """(1/w) ∫ C̄(μ + u, σ) du over |u| < w/2 by the midpoint rule on the exact edge form."""
     u = (np.arange(4000) + 0.5) / 4000 - 0.5

@@ -26,6 +26,9 @@ branch. Modulo: widths of a whole period or more give the row mean (Hart's rule 
 table). Clamp: a box reaching beyond the three copies is cut to them (it is then nearly all the edge
 colour anyway).
 
+Derivative (`PreconvolvedMap.derivative_data`): ∂C̄/∂μ of each row, in the layout of `data` and read
+like it (cm_gaussian on its own texture); surface-filter's slope colours under a light need it.
+
 Bake: modulo tables by the exact Fourier series of the piecewise-constant table times the Gaussian's
 transfer function exp(−2π²σ²k²), |k| <= 2 n (exact to 1e-15 for σ >= 1/n); narrower σ and all clamp
 tables by the edge form C̄ = c_last + Σ_e (c_{e−1} − c_e) Φ((x_e − μ)/σ) over the entry edges x_e.
@@ -88,6 +91,23 @@ class PreconvolvedMap:
 
     def upload_box(self, ctx: moderngl.Context) -> moderngl.Texture:
         return float_texture(ctx, self.box_data())
+
+    def derivative_data(self) -> np.ndarray:
+        """∂C̄/∂μ of each row per unit of μ (table periods), float32, laid out and read like `data`: the
+        central difference over the neighbouring μ texels (periodic for modulo tables; at a clamp table's
+        end columns, over the column and its one neighbour, the map being flat there)."""
+        d = self.data.astype(np.float64)
+        lo, hi = self.mu_range
+        step = (hi - lo) / d.shape[1]
+        if self.wrap == "modulo":
+            after, before = np.roll(d, -1, axis=1), np.roll(d, 1, axis=1)
+        else:
+            after = np.concatenate([d[:, 1:], d[:, -1:]], axis=1)
+            before = np.concatenate([d[:, :1], d[:, :-1]], axis=1)
+        return ((after - before) / (2.0 * step)).astype(np.float32)
+
+    def upload_derivative(self, ctx: moderngl.Context) -> moderngl.Texture:
+        return float_texture(ctx, self.derivative_data(), repeat_x=self.wrap == "modulo")
 
     def box_lookup(self, mu: np.ndarray, width: np.ndarray, sigma: np.ndarray) -> np.ndarray:
         """NumPy float64 twin of cm_gaussianBox over this bake (without the texture unit's rounding)."""

@@ -151,6 +151,9 @@ class MicrosurfaceMaterial:
             if name == "height":  # surface-filter reads it box-filtered too (ms_heightColour)
                 textures["u_heightGaussianBox"] = pre.upload_box(ctx)
                 owned.append(textures["u_heightGaussianBox"])
+            if name == "slope":  # and the slope colour's derivative (ms_slopeColourDerivative)
+                textures["u_slopeGaussianDerivative"] = pre.upload_derivative(ctx)
+                owned.append(textures["u_slopeGaussianDerivative"])
             uniforms[f"u_{name}Range"] = (*pre.mu_range, pre.sigma_max)
             uniforms[f"u_{name}Wrap"] = point.wrap_code
             uniforms[f"u_{name}Map"] = (cmap.scale, cmap.offset)

@@ -114,6 +114,7 @@ uniform vec2 u_heightMap;  // @param -100..100 Height map: (scale, offset), the 
 uniform float u_perturb;   // @param -1..1 Perturbation: ρ in C(h + ρ r), the texture fractal r added to the height colour's argument (needs a height colour map and a texture fractal); every mode follows
 uniform sampler2D u_slopePoint;  // @table the slope colour table C_s for the point and naive modes: u: f = u_slopeMap.x (s·d) + u_slopeMap.y (s the micro slope in the macro tangent frame, d = u_slopeDirection) in table periods, n = width entries, entry i covering [i/n, (i+1)/n); read with texelFetch at floor(n fract(f)) for u_slopeWrap = 0 (modulo) or min(floor(n clamp(f, 0, 1)), n - 1) for u_slopeWrap = 1 (clamp); one row, NEAREST, no MIP; RGBA: the colour table in linear RGB premultiplied by alpha, and alpha
 uniform sampler2D u_slopeGaussian;  // @table the preconvolved slope colour map C̄_s(μ, σ) for the filtered modes with u_slopeRange = (mu_lo, mu_hi, sigma_max); u: μ = u_slopeMap.x E[s·d] + u_slopeMap.y (s the micro slope, visible slopes in surface-filter, d = u_slopeDirection), in table periods: u = fract(μ) for u_slopeWrap = 0 (modulo: one period, REPEAT, u_slopeRange.xy = (0, 1)) or (μ - mu_lo)/(mu_hi - mu_lo) for u_slopeWrap = 1 (clamp: CLAMP_TO_EDGE, the edge columns beyond), texel i at μ = mu_lo + (i + 0.5)(mu_hi - mu_lo)/width; v: σ = |u_slopeMap.x| x the standard deviation of s·d, row j at σ = sigma_max j/(height - 1) (read at v = (σ/sigma_max (height - 1) + 0.5)/height; σ > sigma_max reads the last row; row 0 is the table itself); RGBA: the colour table convolved with N(0, σ²) at μ, in linear RGB premultiplied by alpha, and alpha; LINEAR, no MIP
+uniform sampler2D u_slopeGaussianDerivative;  // @table ∂C̄_s/∂μ of u_slopeGaussian per unit of its μ (colormap/gaussian.py, PreconvolvedMap.derivative_data: central differences over neighbouring μ texels), laid out and read as u_slopeGaussian with u_slopeRange and u_slopeWrap; RGBA: derivatives of linear premultiplied RGB and of alpha; LINEAR, no MIP
 uniform vec3 u_slopeRange;
 uniform int u_slopeWrap;
 uniform vec2 u_slopeMap;  // @param -4..4 Slope map: (scale, offset), the slope colour table's argument f = scale (s·d) + offset, d = u_slopeDirection; every mode follows; for clamp tables the filtered modes are exact while f stays within u_slopeRange.xy and |scale| times the deviation stays below u_slopeRange.z (the preconvolved bake's range)
@@ -151,19 +152,18 @@ vec4 ms_mapGaussian(sampler2D table, vec2 map, float mean, float variance, int w
 // their spread, Stein's lemma gives Cov(C_s(s·d), L) = E[C_s'] Cov(s·d, L) with E[C_s'] = ∂C̄_s/∂μ, so
 //     E[C_s L]/E[L] = C̄_s + ∂C̄_s/∂μ · Cov(s·d, L)/E[L]
 // (exact for any L when C̄_s is linear over the spread). cs = C̄_s at the mean μ = E[s·d] with the variance
-// varDir of s·d; covOverMean = Cov(s·d, L)/E[L] (ms_lambertMoments). ∂C̄_s/∂μ is a central difference over
-// ±h, h half the deviation (C̄_s is smooth on that scale) and at least one texel of the bake.
+// varDir of s·d; covOverMean = Cov(s·d, L)/E[L] (ms_lambertMoments). ∂C̄_s/∂μ is read from the bake's own
+// derivative map (u_slopeGaussianDerivative), one read. Until the eighteenth session it was a central
+// difference of two reads of C̄_s over ±h, h half the deviation: the derivative of C̄_s smoothed by that box
+// (256 px, 64-spp references, 7 round-robin rounds, before -> after: micro-snake-sphere FLIP 0.0632 ->
+// 0.0630 at 1.549 -> 1.535 x naive, micro-slopes-sphere 0.0915 -> 0.0911 at 1.077 -> 1.072).
 // Measured (256 px, 64-spp references; FLIP of surface-filter before -> after): micro-slopes-sphere
 // 0.0904 -> 0.0832, micro-snake-sphere 0.0837 -> 0.0776; presets without a slope colour map are unchanged.
 // Under an environment's irradiance E (MS_IRRADIANCE) the same holds per channel: E[C_s E] = C̄_s Ē +
 // ∂C̄_s/∂μ Cov(s·d, E), with Cov from the irradiance's own cubature nodes (ms_filteredIrradianceMomentsSH).
 #ifdef MS_SLOPE_MAP
 vec4 ms_slopeColourDerivative(float mean, float varDir) {
-    float texel = (u_slopeRange.y - u_slopeRange.x) / (float(textureSize(u_slopeGaussian, 0).x) * max(abs(u_slopeMap.x), 1e-30));
-    float h = max(0.5 * sqrt(max(varDir, 0.0)), texel);
-    vec4 above = ms_mapGaussian(u_slopeGaussian, u_slopeMap, mean + h, varDir, u_slopeWrap, u_slopeRange);
-    vec4 below = ms_mapGaussian(u_slopeGaussian, u_slopeMap, mean - h, varDir, u_slopeWrap, u_slopeRange);
-    return (above - below) / (2.0 * h);
+    return u_slopeMap.x * ms_mapGaussian(u_slopeGaussianDerivative, u_slopeMap, mean, varDir, u_slopeWrap, u_slopeRange);
 }
 
 // derivative = ms_slopeColourDerivative at the sample, computed once for all its lights and the environment.
