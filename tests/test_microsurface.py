@@ -1064,6 +1064,10 @@ def test_a_one_colour_map_renders_as_its_filtered_table_in_every_mode():
     maps = {**material.maps, "height": replace(material.maps["height"], table=varied)}
     assert "MS_HEIGHT_CONSTANT" in material.defines(None) and "MS_HEIGHT_MAP" not in material.defines(None)
     assert "MS_HEIGHT_MAP" in replace(material, maps=maps).defines(None)
+    # one colour as uploaded, premultiplied: a transparent table whose straight colours differ is one too
+    transparent = np.zeros((4, 4), np.float32)
+    transparent[:, 0] = (0.1, 0.2, 0.3, 0.4)
+    assert replace(material.maps["height"], table=ColourTable(transparent, "clamp")).is_constant()
     images = {}
     for name, m in (("constant", material), ("table", replace(material, maps=maps))):
         scene = replace(base, objects=[replace(base.objects[0], material=m)])

@@ -68,6 +68,10 @@ class ColourMap:
     offset: float = 0.0
     preconvolved: dict = field(default_factory=dict)
 
+    def is_constant(self) -> bool:
+        """One colour throughout, as uploaded (premultiplied): its own filtered value, bound as a constant."""
+        return self.table.premultiplied().is_constant()
+
 
 @dataclass
 class MicrosurfaceMaterial:
@@ -109,7 +113,7 @@ class MicrosurfaceMaterial:
     def defines(self, options) -> dict[str, object]:
         # a constant colour map is its own filtered value under any distribution: no table, no filtering
         defines: dict[str, object] = {
-            f"MS_{name.upper()}_{'CONSTANT' if cmap.table.is_constant() else 'MAP'}": True
+            f"MS_{name.upper()}_{'CONSTANT' if cmap.is_constant() else 'MAP'}": True
             for name, cmap in self.maps.items()
         }
         if self.texture is not None:
@@ -139,7 +143,7 @@ class MicrosurfaceMaterial:
         owned: list = []  # everything with a release() that this material created
         for name, cmap in self.maps.items():
             table = cmap.table.premultiplied()
-            if table.is_constant():
+            if cmap.is_constant():
                 uniforms[f"u_{name}Constant"] = tuple(float(v) for v in table.entries[0])
                 continue
             pre = preconvolve(table, **cmap.preconvolved)
