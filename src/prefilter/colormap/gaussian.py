@@ -68,7 +68,12 @@ class PreconvolvedMap:
         return self.sigma_max * np.arange(self.data.shape[0]) / (self.data.shape[0] - 1)
 
     def upload(self, ctx: moderngl.Context) -> moderngl.Texture:
-        return float_texture(ctx, self.data, repeat_x=self.wrap == "modulo")
+        return self._texture_like_data(ctx, self.data)
+
+    def _texture_like_data(self, ctx: moderngl.Context, values: np.ndarray) -> moderngl.Texture:
+        """A texture of `values`, laid out as `data` and read as cm_gaussian reads it (repeating in μ for
+        modulo tables)."""
+        return float_texture(ctx, values, repeat_x=self.wrap == "modulo")
 
     def _sigma_rows(self, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The lower σ row of a bilinear read and the weight of the row above (σ clamped to sigma_max)."""
@@ -107,7 +112,7 @@ class PreconvolvedMap:
         return ((after - before) / (2.0 * step)).astype(np.float32)
 
     def upload_derivative(self, ctx: moderngl.Context) -> moderngl.Texture:
-        return float_texture(ctx, self.derivative_data(), repeat_x=self.wrap == "modulo")
+        return self._texture_like_data(ctx, self.derivative_data())
 
     def box_lookup(self, mu: np.ndarray, width: np.ndarray, sigma: np.ndarray) -> np.ndarray:
         """NumPy float64 twin of cm_gaussianBox over this bake (without the texture unit's rounding)."""

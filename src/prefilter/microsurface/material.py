@@ -143,7 +143,7 @@ class MicrosurfaceMaterial:
         owned: list = []  # everything with a release() that this material created
         for name, cmap in self.maps.items():
             table = cmap.table.premultiplied()
-            if cmap.is_constant():
+            if table.is_constant():  # as the defines judge it (ColourMap.is_constant)
                 uniforms[f"u_{name}Constant"] = tuple(float(v) for v in table.entries[0])
                 continue
             pre = preconvolve(table, **cmap.preconvolved)

@@ -13,9 +13,10 @@
 //                        the visible-slope distribution D_s (§5.2), Lambert averaged over D_s, combinations (§6)
 // Lighting: directional lights sh_lightDirection/Colour (world) with shadows, plus unshadowed ambient;
 // or, with MS_IRRADIANCE, an environment's irradiance in 9 SH coefficients (§5.3) and nothing else.
-// Colour maps (defines MS_HEIGHT_MAP, MS_SLOPE_MAP, MS_TEXTURE_MAP; _CONSTANT for a one-colour map): argument = scale·x + offset with
-// x = h + ρ r (height), s·d (slope along the tangent direction d), r (texture); combined as
-// κ₀C₀ + κ₁C_h + κ₂C_s, or with u_slopeOver = 1 as the premultiplied slope layer over κ₀C₀ + κ₁C_h.
+// Colour maps (defines MS_HEIGHT_MAP, MS_SLOPE_MAP, MS_TEXTURE_MAP; _CONSTANT for a one-colour map):
+// argument = scale·x + offset with x = h + ρ r (height), s·d (slope along the tangent direction d), r
+// (texture); combined as κ₀C₀ + κ₁C_h + κ₂C_s, or with u_slopeOver = 1 as the premultiplied slope layer over
+// κ₀C₀ + κ₁C_h.
 
 #include "microsurface/heightfield.glsl"
 #include "microsurface/smith.glsl"
