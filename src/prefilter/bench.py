@@ -50,7 +50,7 @@ RESOLVED_TOLERANCE = 1.0 / 512.0
 STUDY_SPP = 64  # the microsurface studies (zoom, log fit) render many references
 # surface-filter's shading samples traded for time on every microsurface preset (samples_study): these
 # besides the preset's own setting, whose FLIP is the main table's
-SAMPLES_STUDY = (1, 2, 4)
+SAMPLES_STUDY = (1, 2, 3, 4)
 ZOOM_PRESET = "micro-heights-sphere"
 FIT_PRESET = "micro-heights-terrain"
 # Fournier presets (issue #5): multilobe must beat the single-lobe baselines on those tagged so.

@@ -18,9 +18,10 @@ Scene TOML (under [object.material], type = "microsurface"):
   footprint = "relief" | "macro"   the pixel footprint that splits the octaves into geometry and
       statistics: on the visible relief, foreshortened by facets facing a grazing eye (heightfield.glsl
       ms_reliefFootprint), or on the macro surface
-  shading_samples = 4 | 6 | 9 | 16 | 2 | 1   surface-filter shades the pixel at N x M sub-pixel points (2 x 2,
-      3 x 2 with 3 along the footprint's longer screen axis, 3 x 3, 4 x 4; 2: one per marched row, or two
-      along the longer axis) with the octaves split for the sub-boxes' footprint and averages them
+  shading_samples = 4 | 6 | 9 | 16 | 3 | 2 | 1   surface-filter shades the pixel at N x M sub-pixel points
+      (2 x 2, 3 x 2 with 3 along the footprint's longer screen axis, 3 x 3, 4 x 4; 3: a triangle, turned in
+      every other pixel; 2: one per marched row, or two along the longer axis) with the octaves split for
+      the sub-boxes' footprint and averages them
       (microsurface.frag: the octaves the footprint half resolves are then integrated over the pixel, not
       sampled once), or once, as the paper does
   marched_rows = true | false   surface-filter: where the coarse relief stands out of the pixel, the grid's
@@ -57,8 +58,9 @@ PACKAGE_ROOT = SHADER_DIR.parent
 FILTERED_MODES = ("texture-filter", "surface-filter")
 MAPS = ("height", "slope", "texture")
 # shading_samples -> the sub-pixel grid (MS_GRID_X, MS_GRID_Y), its longer side along the footprint's longer
-# screen axis; MS_GRID_Y is the number of rows the column marches (1 x 2: one sample per row)
-SHADING_GRIDS = {1: (1, 1), 2: (1, 2), 4: (2, 2), 6: (3, 2), 9: (3, 3), 16: (4, 4)}
+# screen axis; MS_GRID_Y is the number of rows the column marches (1 x 2: one sample per row); 3 is a triangle
+# (MS_TRIANGLE), marched in one row
+SHADING_GRIDS = {1: (1, 1), 2: (1, 2), 3: (3, 1), 4: (2, 2), 6: (3, 2), 9: (3, 3), 16: (4, 4)}
 
 
 @dataclass
@@ -127,6 +129,8 @@ class MicrosurfaceMaterial:
         if self.transfer is not None:
             defines["MS_TRANSFER"] = True
         defines["MS_GRID_X"], defines["MS_GRID_Y"] = SHADING_GRIDS[self.shading_samples]
+        if self.shading_samples == 3:
+            defines["MS_TRIANGLE"] = True
         # the column's sub-rays: the grid's rows
         defines["MS_RELIEF_RAYS"] = SHADING_GRIDS[self.shading_samples][1] if self.marched_rows else 1
         defines["MS_SLOPE_LEAN"] = SLOPE_LEAN  # the fBm's visible slopes (fractal_masking.slope_lean)
@@ -283,7 +287,7 @@ def parse_microsurface(r: Reader, base_dir: Path) -> MicrosurfaceMaterial:
     footprint = r.string("footprint", "relief", choices=("relief", "macro"))
     shading_samples = r.integer("shading_samples", 4)
     if shading_samples not in SHADING_GRIDS:
-        raise r.fail("shading_samples", f"must be 1, 2, 4, 6, 9 or 16, got {shading_samples}")
+        raise r.fail("shading_samples", f"must be 1, 2, 3, 4, 6, 9 or 16, got {shading_samples}")
     marched_rows = r.boolean("marched_rows", True)
     transfer, transfer_scale = None, 1.0
     xr = r.child("transfer")

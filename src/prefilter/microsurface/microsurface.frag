@@ -33,7 +33,22 @@ const mat3 MS_ENV_FROM_WORLD = mat3(vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), ve
 
 // Shading samples of surface-filter: an MS_GRID_X x MS_GRID_Y grid of sub-pixel points, its longer side along
 // the longer screen axis of the footprint (shading_samples 6 = 3 x 2; 2 = 1 x 2, one sample on each of the
-// column's two rows where the relief stands out of the pixel; 1, 4, 9, 16 are square).
+// column's two rows where the relief stands out of the pixel; 1, 4, 9, 16 are square), or with MS_TRIANGLE
+// (shading_samples 3, MS_GRID_X 3) three points on a circle of MS_TRIANGLE_RADIUS pixels about the centre:
+// MS_TRIANGLE_OFFSETS, one of them on the footprint's longer screen axis, the triangle turned by half a turn
+// in every other pixel (a checkerboard) so that neighbouring pixels' samples interleave. The radius √2/4
+// gives each screen axis the 2 x 2 grid's second moment (r²/2 = 1/16); each sample's sub-box has the side
+// of the samples' spacing, √3 r (the grid's sub-box is its spacing too). Measured on micro-snake-sphere
+// (256 px, 64-spp reference, FLIP and time ÷ naive, 5 round-robin rounds; 2 x 2: 0.0630 at 1.49-1.54, the
+// 2-sample column 0.0743 at 1.34): 0.0675 at 1.37-1.41. Of the triangle's variants the checkerboard and a
+// vertex on the longer axis were best on the snake (0.0690 without either) and within 0.0004 of the best on
+// the height sphere and the irradiance terrain; a sub-box of 1/√3 (equal area) gave 0.0690, of 0.75 0.0676
+// on the snake but 0.0577 against 0.0540 on the height sphere; radius 0.41 (the box's own second moment)
+// 0.0723.
+#ifdef MS_TRIANGLE
+#define MS_TRIANGLE_RADIUS 0.35355339
+const vec2 MS_TRIANGLE_OFFSETS[3] = vec2[3](vec2(1.0, 0.0), vec2(-0.5, -0.8660254), vec2(-0.5, 0.8660254));
+#endif
 #ifndef MS_GRID_X
 #define MS_GRID_X 1
 #endif
@@ -535,14 +550,24 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     bool swapAxes = !ms_column && ((length(dpdy) > length(dpdx)) != (MS_GRID_Y > MS_GRID_X));
     vec3 gridX = swapAxes ? dpdy : dpdx, gridY = swapAxes ? dpdx : dpdy;
     vec3 gridXMacro = swapAxes ? dpdyMacro : dpdxMacro, gridYMacro = swapAxes ? dpdxMacro : dpdyMacro;
+#ifdef MS_TRIANGLE
+    float spacing = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        vec2 vertex = (1.0 - gate) * MS_TRIANGLE_RADIUS * MS_TRIANGLE_OFFSETS[k];
+        spacing = max(spacing, length(vertex.x * gridX + vertex.y * gridY));
+    }
+#else
     vec2 reach = (1.0 - gate) * vec2(MS_GRID_X - 1, ms_column ? 0 : MS_GRID_Y - 1) / vec2(2 * MS_GRID_X, 2 * MS_GRID_Y);
     float spacing = max(length(reach.x * gridX + reach.y * gridY), length(reach.x * gridX - reach.y * gridY));
+#endif
+#if MS_RELIEF_RAYS > 1
     // the column's rows are as far from q as their hits (their samples are traced from q's shadow profile)
     for (int r = 1; r < MS_RELIEF_RAYS; ++r) {
         if (r >= ms_rows) break;
         vec3 apart = ms_rowPoint[r] - q;
         spacing = max(spacing, length(apart - dot(apart, frame[2]) * frame[2]) + length(reach.x * gridX));
     }
+#endif
 #else
     float spacing = 0.0;
 #endif
@@ -567,7 +592,11 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
 #if MS_SHADING_SAMPLES > 1
     // Where the relief stands out of the pixel it is geometry already: the samples close up towards the
     // centre.
+#ifdef MS_TRIANGLE
+    vec2 sub = mix(vec2(sqrt(3.0) * MS_TRIANGLE_RADIUS), vec2(1.0), gate);  // the sub-box, in pixel axes
+#else
     vec2 sub = mix(1.0 / vec2(MS_GRID_X, MS_GRID_Y), vec2(1.0), gate);  // the sub-box, in pixel axes
+#endif
     if (ms_column) sub.y = 1.0 / float(MS_GRID_Y);  // a row's share of the pixel, whatever the gate
     // The plane the samples are placed on (ms_subpixelPoint) carries the coarse surface's tilt over the
     // region they can reach, twice the pixel (a sample may lie up to twice its offset from q), not the tilt
@@ -647,6 +676,10 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
 #if MS_SHADING_SAMPLES > 1
         vec2 offset = (vec2(k % MS_GRID_X, k / MS_GRID_X) + 0.5 - 0.5 * vec2(MS_GRID_X, MS_GRID_Y))
                     * (1.0 - gate) / vec2(MS_GRID_X, MS_GRID_Y);
+#ifdef MS_TRIANGLE
+        bool turned = ((int(gl_FragCoord.x) + int(gl_FragCoord.y)) & 1) == 1;  // every other pixel
+        offset = (turned ? gate - 1.0 : 1.0 - gate) * MS_TRIANGLE_RADIUS * MS_TRIANGLE_OFFSETS[k];
+#endif
         int row = ms_column ? min(k / MS_GRID_X, MS_RELIEF_RAYS - 1) : 0;
         if (ms_column) offset.y = 0.0;  // the row's sub-ray is at its height already
         vec3 rowMacro = ms_column ? ms_rowMacro[row] : p0;
