@@ -628,7 +628,7 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
 #endif
     // how far below the macro horizon a light can still reach the marched point (0 on a plane; below)
 #ifdef MS_SPHERE
-    float horizonDip = sqrt(2.0 * max(ms_altitude(q) + ms_heightBound, 0.0) / ms_radius);
+    float horizonDip = sqrt(2.0 * max(ms_altitude(q) - ms_reliefRange().x, 0.0) / ms_radius);
 #else
     float horizonDip = 0.0;
 #endif
@@ -742,8 +742,8 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
             // At or below the macro horizon Smith's shadowing G1(wi) of the whole surface is 0; the ratio
             // V̄_t / V̄_c below of two vanishing visibilities is not. A plane takes no light from there, a
             // sphere the light that its tall points see (ms_facetMicroVisibility): a ray leaving the
-            // marched point's altitude h at slope -μ dives μ²R/2 and meets the coarse relief (|h| < b)
-            // unless μ < sqrt(2(h + b)/R).
+            // marched point's altitude h at slope -μ dives μ²R/2 and meets the coarse relief (whose lowest
+            // altitude is ms_reliefRange().x = -b) unless μ < sqrt(2(h + b)/R).
             if (wi.z <= -horizonDip) continue;
             float clearance = shadows[j].x + linearity * ((s.h - qHeight) - dot(shadows[j].yzw, lag));
             float lit = clearance > 0.0 ? 1.0 : 0.0;
@@ -837,7 +837,7 @@ void main() {
     ms_setWeights(dpdx, dpdy, false);
 #endif
     vec3 o = u_eyeObject.w > 0.5 ? u_eyeObject.xyz : p0 - d * (4.0 * (ms_radius + ms_heightBound) + 1.0);
-    vec3 slab = ms_slab(o, d, ms_heightBound);
+    vec3 slab = ms_slab(o, d, ms_reliefRange());
     if (slab.y < slab.x) discard;
 #if !defined(MODE_POINT) && !defined(MODE_MARCH_STEPS)
     vec3 up = ms_macroNormal(p0);
