@@ -45,6 +45,14 @@ def window_gridding(k: float, sigma: float, alpha_bins, beta_bins, u, v):
     return sx, sy, gu, gv
 
 
+def _unit_phasor(phase: np.ndarray) -> np.ndarray:
+    """exp(i phase) as complex64 from float32 cosines and sines: NumPy's complex exp took 9.8 ms on a 527²
+    patch against 0.8 ms (to within 1e-7), half of the fast table's bake."""
+    out = np.empty(phase.shape, np.complex64)
+    out.real, out.imag = np.cos(phase), np.sin(phase)
+    return out
+
+
 def bake_fast_table(
     heights: np.ndarray,
     pixel: tuple[float, float],
@@ -80,7 +88,7 @@ def bake_fast_table(
                 periodic_factor(alpha, cols * dx, tiles[0]) / tiles[0] ** 2,
             )
         for j, wj in enumerate(w):
-            c = scipy.fft.fft2(np.exp(1j * np.float32(k * wj) * h), workers=-1) / (rows * cols)
+            c = scipy.fft.fft2(_unit_phasor(np.float32(k * wj) * h), workers=-1) / (rows * cols)
             if tiles is None:
                 power = np.abs(gv @ c[np.ix_(sy, sx)] @ gu.T) ** 2
             else:

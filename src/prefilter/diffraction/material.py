@@ -160,7 +160,9 @@ class DiffractionMaterial:
             "step": self.spectral_step,
             "size": list(self.table_size),
             "tiles": list(self.tiles) if self.tiles else None,
-            "version": 2,  # 2: every bin of the window, no Taylor truncation (1: the shader's 2 x 2 bins)
+            # 2: every bin of the window, no Taylor truncation (1: the shader's 2 x 2 bins); 3: the phasors
+            # from float32 cosines and sines (the same table to within 1e-7 of each phasor)
+            "version": 3,
         }
         data = cached_arrays(
             "df-fast",
