@@ -40,15 +40,7 @@ def cached(
 ) -> np.ndarray:
     """Return the bake for these inputs from the cache, computing and storing it on a miss."""
     path = cache_dir() / f"{kind}-{input_hash(kind, params, arrays)}.npy"
-    result = _load(path, np.load)
-    if result is not None:
-        return result
-    with _bake_lock(path):
-        result = _load(path, np.load)  # baked by another process while this one waited
-        if result is None:
-            result = compute()
-            _store(path, lambda f: np.save(f, result))
-    return result
+    return _cached_entry(path, np.load, compute, np.save)
 
 
 def cached_arrays(
@@ -59,14 +51,19 @@ def cached_arrays(
 ) -> dict[str, np.ndarray]:
     """`cached` for a bake made of several named arrays (stored as one .npz)."""
     path = cache_dir() / f"{kind}-{input_hash(kind, params, arrays)}.npz"
-    result = _load(path, _load_npz)
+    return _cached_entry(path, _load_npz, compute, lambda f, result: np.savez(f, **result))
+
+
+def _cached_entry(path: Path, load: Callable, compute: Callable, save: Callable):
+    """The entry at path; on a miss baked (once across processes) and saved with save(file, result)."""
+    result = _load(path, load)
     if result is not None:
         return result
     with _bake_lock(path):
-        result = _load(path, _load_npz)
+        result = _load(path, load)  # baked by another process while this one waited
         if result is None:
             result = compute()
-            _store(path, lambda f: np.savez(f, **result))
+            _store(path, lambda f: save(f, result))
     return result
 
 

@@ -93,8 +93,8 @@ int ms_steps = 0;          // march steps taken by this fragment (the march-step
 uniform sampler2D u_transferTable;  // @table the transfer function's moments (Heitz et al. 2014 §7) with u_transferRange = (mu_lo, mu_hi, sigma_max) in driver units; u: the driver's mean μ over the footprint, (μ - mu_lo)/(mu_hi - mu_lo), texel i at μ = mu_lo + (i + 0.5)(mu_hi - mu_lo)/width (CLAMP_TO_EDGE: the edge columns beyond); v: the driver's standard deviation σ, row j at σ = sigma_max j/(height - 1) (read at v = (σ/sigma_max (height - 1) + 0.5)/height; σ > sigma_max reads the last row); RGBA: (E[g], E[g²], E[g'], E[g'²]) of g under N(μ, σ²), g in driver units (heights are u_transferScale g), row 0 holding (g, g², g', g'²) themselves; LINEAR, no MIP; not colours
 uniform vec3 u_transferRange;
 uniform float u_transferScale;  // h = scale · g(f): g in driver units, h in object units
-uniform vec3 u_transferBound;   // (max |h|, max |dh/df|) over the driver range, and the RMS of dh/df over the driver f ~ N(0, σ_f²) of all the octaves
-uniform vec2 u_transferHeights; // (low, high): the least and greatest h over the driver range, each widened to include 0
+uniform vec2 u_transferHeights; // (low, high): the least and greatest h over the driver range, each widened to include 0 (max |h| = max(-low, high))
+uniform vec2 u_transferSlopes;  // (max |dh/df| over the driver range, the RMS of dh/df over the driver f ~ N(0, σ_f²) of all the octaves)
 float ms_transferSigma;         // σ_f of the unresolved driver: the coarse surface is ḡ(f_c, σ_f)
 
 // (E[h], E[h²], E[h'], E[h'²]) for h = scale · g(f), f ~ N(mu, sigma²).
@@ -199,8 +199,8 @@ void ms_setWeightsAbove(vec3 dpdx, vec3 dpdy, bool full, float floorWeight) {
     ms_coarseFrequency = sqrt(curvatureMoment / max(ms_coarseSlopeVariance, 1e-30));
 #ifdef MS_TRANSFER
     ms_transferSigma = sqrt(ms_heightVariance);
-    ms_heightBound = u_transferBound.x;
-    ms_slopeBound *= u_transferBound.y;
+    ms_heightBound = max(-u_transferHeights.x, u_transferHeights.y);
+    ms_slopeBound *= u_transferSlopes.x;
 #endif
 }
 
@@ -319,7 +319,7 @@ vec2 ms_coarseSlope(vec3 p, mat3 frame, vec3 dpdx, vec3 dpdy, out float height) 
 float ms_coarseSlopeDeviation() {
     float deviation = sqrt(ms_coarseSlopeVariance);
 #ifdef MS_TRANSFER
-    deviation *= u_transferBound.z;
+    deviation *= u_transferSlopes.y;
 #endif
     return deviation;
 }
@@ -380,7 +380,7 @@ void ms_reliefFootprint(vec3 q, vec3 view, inout vec3 dpdx, inout vec3 dpdy) {
     }
     float sigma = sqrt(coarseVariance);
 #ifdef MS_TRANSFER
-    sigma *= u_transferBound.y;
+    sigma *= u_transferSlopes.x;
 #endif
     float pixel = max(length(dpdx), length(dpdy)) * cosine;  // the pixel's size across the ray
     float gate = smoothstep(0.25, 1.0, sigma / max(pixel, 1e-30));
@@ -743,7 +743,7 @@ vec4 ms_shadowProfile(vec3 q, vec3 l, int maxSteps, float reach, float skip) {
     if (ms_heightBound <= 8.0 * eps) return none;
     vec3 n = ms_macroNormal(q);
     vec3 o = q + n * (max(-ms_gap(q), 0.0) + max(1e-3 * ms_heightBound, eps));
-    vec3 slab = ms_slab(o, l, ms_reliefRange() + vec2(0.0, max(reach, 0.0)));  // clearances below reach count
+    vec3 slab = ms_slab(o, l, ms_reliefRange() + vec2(0.0, reach));  // clearances below reach count
     if (slab.y <= slab.x) return none;
     float t = max(2e-3 * ms_heightBound, 2.0 * eps);
 #ifndef MS_TRANSFER
@@ -753,7 +753,7 @@ vec4 ms_shadowProfile(vec3 q, vec3 l, int maxSteps, float reach, float skip) {
     // the coarse slope along the ray (above)
     float slopeBound = MS_PROFILE_SLOPE_DEVIATIONS * sqrt(ms_coarseSlopeVariance);
 #ifdef MS_TRANSFER
-    slopeBound *= u_transferBound.y;
+    slopeBound *= u_transferSlopes.x;
 #endif
     slopeBound = min(slopeBound, ms_slopeBound);
     float least = reach;

@@ -176,13 +176,12 @@ class MicrosurfaceMaterial:
             uniforms["u_transferRange"] = (*pre.mu_range, pre.sigma_max)
             uniforms["u_transferScale"] = self.transfer_scale
             v = np.linspace(*pre.mu_range, 4097)
-            uniforms["u_transferBound"] = (
-                self.transfer_scale * float(np.max(np.abs(self.transfer.g(v)))),
+            heights = self.transfer_scale * self.transfer.g(v)  # the relief's range, 0 included
+            uniforms["u_transferHeights"] = (min(float(heights.min()), 0.0), max(float(heights.max()), 0.0))
+            uniforms["u_transferSlopes"] = (
                 self.transfer_scale * float(np.max(np.abs(self.transfer.g_prime(v)))),
                 self.transfer_scale * self.transfer.slope_gain(np.sqrt(self.height.variance())),
             )
-            heights = self.transfer_scale * self.transfer.g(v)  # the relief's range, 0 included
-            uniforms["u_transferHeights"] = (min(float(heights.min()), 0.0), max(float(heights.max()), 0.0))
         if self.environment is not None:
             from prefilter.microsurface.irradiance import irradiance_sh, sh_uniform
 
