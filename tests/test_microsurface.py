@@ -636,6 +636,13 @@ vec4 transferShadowTest(vec3 c, vec3 l) {
     float symmetric = ms_march(o, l, slab, 768, false) < 0.0 ? 1.0 : 0.0;
     return vec4(lit, q.y, steps, (symmetric > 0.5 ? 1.0 : -1.0) * (float(ms_steps) + 1.0));
 }
+vec4 transferProfileTest(vec3 c, vec3 l, float reach) {
+    ms_setWeights(vec3(0.0), vec3(0.0), true);
+    vec3 q = vec3(c.x, ms_surfaceHeight(vec3(c.x, 0.0, c.z)), c.z);
+    // the profile starts this far above q
+    float lift = max(-ms_gap(q), 0.0) + max(1e-3 * ms_heightBound, 2e-6 * (length(q) + 1.0));
+    return vec4(ms_shadowProfile(q, l, 768, reach, 0.0).x, q.y, lift, ms_heightBound);
+}
 vec2 transferMarchTest(vec3 o, vec3 d) {
     ms_setWeights(vec3(0.0), vec3(0.0), true);
     ms_steps = 0;
@@ -718,6 +725,42 @@ def test_a_transfer_functions_one_sided_slab_keeps_hits_and_shadows(name, elevat
     expected = t[below.argmax(axis=1)]
     misses = np.abs(hits - expected) > 2 * t[1] + 1e-4  # two of the scan's steps
     assert misses.mean() <= 0.01, (hits[misses], expected[misses])
+
+
+@pytest.mark.parametrize("name", ["moss", "sponge"])
+def test_a_profile_stopping_where_no_clearance_ahead_can_be_lower_finds_the_least_one(name):
+    """ms_shadowProfile stops once the ray climbs so high above the relief's top that no clearance ahead can
+    fall below the least found so far. Against a dense scan of the clearances along the same ray (NumPy, the
+    oracle), with the reach a quarter of max |h| and the light 8 degrees high: where the scan's least
+    clearance is above -reach the profile's is within 5 % of the reach of it, and it is below -reach
+    exactly where the scan's is, for at least 98 % of the rays (measured: 100 % and 99-100 %, and the same
+    at 25 degrees; stopping with the top taken 0.3 reach too low gives 62 % and 97 % on the sponge, with
+    the relief's bottom 44 % and 90 %, the moss 26 % and 87 %)."""
+    n, elevation = 300, 8.0
+    rng = _rng(n, 80, 11)
+    azimuth = rng.uniform(0, 2 * np.pi, n)
+    cos_e, sin_e = np.cos(np.radians(elevation)), np.sin(np.radians(elevation))
+    light = np.stack([cos_e * np.cos(azimuth), np.full(n, sin_e), cos_e * np.sin(azimuth)], 1)
+    c = np.zeros((n, 3))
+    c[:, 0], c[:, 2] = rng.uniform(-1, 1, (2, n))
+    heights = TRANSFER_SCALE * TRANSFER_FUNCTIONS[name]().g(
+        np.linspace(-2, 2, 4001)
+    )  # the table's driver range
+    top = max(heights.max(), 0.0)
+    reach = 0.25 * max(-heights.min(), top)
+    least, q_height, lift, height_bound = _eval_transfer(
+        name, "transferProfileTest(c, l, r)", {"c": c, "l": light, "r": np.full(n, reach)}, 4
+    ).T
+    assert np.allclose(height_bound, reach / 0.25, rtol=1e-3)  # the relief's bound, as the shader has it
+    o = c.copy()
+    o[:, 1] = q_height + lift
+    start = 2e-3 * height_bound[0]  # the profile's first step; the ray ends at top + reach
+    t = start + np.linspace(0.0, 1.0, 6000)[None, :] * ((top + reach - o[:, 1]) / sin_e - start)[:, None]
+    scan = _transfer_gaps(name, o[:, None, :] + t[..., None] * light[:, None, :]).min(axis=1)
+    assert 0.05 < (scan < 0).mean() < 0.95  # some rays blocked, some not
+    open_rays = scan >= -reach
+    assert (np.abs(least - scan)[open_rays] <= 0.05 * reach).mean() >= 0.98
+    assert ((least < -reach) == (scan < -reach)).mean() >= 0.98
 
 
 # --- the filtered pipeline in GLSL against Heitz and Neyret's closed form ----------------------------------

@@ -731,6 +731,13 @@ float ms_shadow(vec3 q, vec3 l, int maxSteps) {
 // 1.52 -> 1.47, snake 1.59 -> 1.54; the horizon bands (below / above) moss 4.1 / 2.4 -> 4.0 / 2.5 %,
 // sponge 9.3 / 6.2 -> 8.8 / 6.1 %. naive's shadow ray (ms_shadow) keeps the hard bound: with this one its
 // frame would take 0.91x the time on the moss and sponge and the same on the Gaussian spheres.
+// The ray stops once no clearance ahead can fall below c* (twenty-first session): every clearance is at
+// least the altitude less the relief's top (ms_reliefRange), and on a ray that climbs (on the sphere,
+// once it does, as |x| is convex along a line) the altitude only grows; so where altitude - top >= c*
+// the answer is final. Before, the ray climbed on to top + reach whatever c* was. The answer is the same
+// bit for bit (the nine presets at 128 px; tested against dense scans of the moss and sponge); it saves
+// most where the relief has a flat top, the sponge's: its profile steps 24 -> 13 a pixel (256 px), its
+// frame 2.27 -> 1.92 x naive (5 rounds, 226 -> 189 ms); the other presets' times are unchanged.
 #ifndef MS_PROFILE_SLOPE_DEVIATIONS
 #define MS_PROFILE_SLOPE_DEVIATIONS 4.0
 #endif
@@ -757,6 +764,7 @@ vec4 ms_shadowProfile(vec3 q, vec3 l, int maxSteps, float reach, float skip) {
 #endif
     slopeBound = min(slopeBound, ms_slopeBound);
     float least = reach;
+    float top = ms_reliefRange().y;
     vec3 at = vec3(0.0);
     for (int i = 0; i < maxSteps; ++i) {
         ms_steps += 1;
@@ -774,6 +782,8 @@ vec4 ms_shadowProfile(vec3 q, vec3 l, int maxSteps, float reach, float skip) {
         float rate = dn + slopeBound * sqrt(max(1.0 - dn * dn, 0.0));
         t += max((gap > 0.0 ? MS_RELAX * (gap - min(least, 0.0)) : max(-gap, 0.5 * reach)) / max(rate, 1e-6), minStep);
         if (t >= slab.y) break;
+        vec3 next = o + t * l;
+        if (ms_altitude(next) - top >= least && dot(l, ms_macroNormal(next)) >= 0.0) break;  // final (above)
     }
     if (least >= reach) return none;
     vec4 fg = ms_fractalGrad(ms_project(at), 0, ms_heightOctaves);
