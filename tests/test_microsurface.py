@@ -755,7 +755,7 @@ def test_a_profile_stopping_where_no_clearance_ahead_can_be_lower_finds_the_leas
     o = c.copy()
     o[:, 1] = q_height + lift
     start = 2e-3 * height_bound[0]  # the profile's first step; the ray ends at top + reach
-    t = start + np.linspace(0.0, 1.0, 6000)[None, :] * ((top + reach - o[:, 1]) / sin_e - start)[:, None]
+    t = start + np.linspace(0.0, 1.0, 2000)[None, :] * ((top + reach - o[:, 1]) / sin_e - start)[:, None]
     scan = _transfer_gaps(name, o[:, None, :] + t[..., None] * light[:, None, :]).min(axis=1)
     assert 0.05 < (scan < 0).mean() < 0.95  # some rays blocked, some not
     open_rays = scan >= -reach
