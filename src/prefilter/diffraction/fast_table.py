@@ -42,6 +42,10 @@ def window_gridding(k: float, sigma: float, alpha_bins, beta_bins, u, v):
     sy = np.nonzero(np.abs(beta_bins) <= reach)[0]
     gu = np.exp(-0.5 * (sigma * (k * np.asarray(u)[:, None] - alpha_bins[sx])) ** 2)
     gv = np.exp(-0.5 * (sigma * (k * np.asarray(v)[:, None] - beta_bins[sy])) ** 2)
+    # weights below 1e-30 are 0: in float32 the smallest are subnormal, and a product over subnormal
+    # operands ran 10x slower (the fast table's gridding, 2.6 of 3 ms a slice on the snake)
+    gu[gu < 1e-30] = 0.0
+    gv[gv < 1e-30] = 0.0
     return sx, sy, gu, gv
 
 
@@ -61,7 +65,13 @@ def bake_fast_table(
     size=DEFAULT_SIZE,
     tiles: tuple[int, int] | None = None,
 ) -> np.ndarray:
-    """(w samples, v samples, u samples, 4) float32: XYZ (and 1) of the spectrally integrated power."""
+    """(w samples, v samples, u samples, 4) float32: XYZ (and 1) of the spectrally integrated power.
+
+    Per (wavelength, w) the DFT runs along the rows first and along the columns only at the bins in reach,
+    and the window's real weights grid the coefficients' real and imaginary parts as two real products
+    (a complex product with real weights did twice the work); each slice's power is added to X, Y and Z in
+    place. With the weights' subnormals flushed (window_gridding) the snake's table bakes in 17 s instead
+    of 42, the same to 1.2e-7 of its peak (float32 rounding)."""
     nu, nv, nw = size
     h = np.asarray(heights, np.float64)
     h = (h - h.mean()).astype(np.float32)
@@ -72,14 +82,14 @@ def bake_fast_table(
     alpha_bins = 2.0 * math.pi * np.fft.fftfreq(cols, dx)
     beta_bins = 2.0 * math.pi * np.fft.fftfreq(rows, dy)
     u, v, w = np.linspace(-2.0, 2.0, nu), np.linspace(-2.0, 2.0, nv), np.linspace(-2.0, 0.0, nw)
-    out = np.zeros((nw, nv, nu, 3))
+    out = np.zeros((3, nw, nv, nu))
     wavelengths, weights = spectral_weights(step_nm)
     for lam, weight in zip(wavelengths, weights, strict=True):
         k = 2.0 * math.pi / lam
         alpha, beta = k * u, k * v
         if tiles is None:
             sx, sy, gu, gv = window_gridding(k, sigma, alpha_bins, beta_bins, u, v)
-            gu, gv = gu.astype(np.complex64), gv.astype(np.complex64)
+            gu, gv = gu.astype(np.float32), gv.astype(np.float32)
         else:
             lx = np.floor(alpha / (2.0 * math.pi / (cols * dx)) + 0.5).astype(np.int64) % cols
             ly = np.floor(beta / (2.0 * math.pi / (rows * dy)) + 0.5).astype(np.int64) % rows
@@ -87,11 +97,17 @@ def bake_fast_table(
                 periodic_factor(beta, rows * dy, tiles[1]) / tiles[1] ** 2,
                 periodic_factor(alpha, cols * dx, tiles[0]) / tiles[0] ** 2,
             )
+            sx, sy = lx, ly
         for j, wj in enumerate(w):
-            c = scipy.fft.fft2(_unit_phasor(np.float32(k * wj) * h), workers=-1) / (rows * cols)
+            c = scipy.fft.fft(_unit_phasor(np.float32(k * wj) * h), axis=1, workers=-1)[:, sx]
+            c = scipy.fft.fft(c, axis=0, workers=-1)[sy] / (rows * cols)
             if tiles is None:
-                power = np.abs(gv @ c[np.ix_(sy, sx)] @ gu.T) ** 2
+                parts = gv @ np.concatenate([c.real, c.imag], axis=1)  # (v, 2 bins): real, imaginary
+                re, im = parts[:, : len(sx)] @ gu.T, parts[:, len(sx) :] @ gu.T
+                power = re * re + im * im
             else:
-                power = np.abs(c[np.ix_(ly, lx)]) ** 2 * factor
-            out[j] += power[..., None] * weight
-    return np.concatenate([out, np.ones(out.shape[:-1] + (1,))], axis=-1).astype(np.float32)
+                power = (c.real * c.real + c.imag * c.imag) * factor
+            for channel in range(3):
+                out[channel, j] += weight[channel] * power
+    xyz1 = np.concatenate([out, np.ones((1,) + out.shape[1:])])
+    return np.ascontiguousarray(np.moveaxis(xyz1, 0, -1), dtype=np.float32)

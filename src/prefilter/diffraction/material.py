@@ -161,8 +161,9 @@ class DiffractionMaterial:
             "size": list(self.table_size),
             "tiles": list(self.tiles) if self.tiles else None,
             # 2: every bin of the window, no Taylor truncation (1: the shader's 2 x 2 bins); 3: the phasors
-            # from float32 cosines and sines (the same table to within 1e-7 of each phasor)
-            "version": 3,
+            # from float32 cosines and sines (the same table to within 1e-7 of each phasor); 4: real gridding
+            # products, the DFT's second pass over the bins in reach only (the same to 1.2e-7 of the peak)
+            "version": 4,
         }
         data = cached_arrays(
             "df-fast",
