@@ -44,7 +44,7 @@ def window_gridding(k: float, sigma: float, alpha_bins, beta_bins, u, v):
     gv = np.exp(-0.5 * (sigma * (k * np.asarray(v)[:, None] - beta_bins[sy])) ** 2)
     # weights below 1e-30 are 0: in float32 the smallest are subnormal, and products over subnormal
     # operands ran 10x slower (on the snake the fast table's second gridding product took 5.2 ms a slice
-    # with them, 0.4 ms without; far below any lobe, the power they carried was under 1e-60)
+    # with them, 0.4 ms without; dropping them moves an amplitude by under 1e-25, 283² bins of at most 1e-30)
     gu[gu < 1e-30] = 0.0
     gv[gv < 1e-30] = 0.0
     return sx, sy, gu, gv
