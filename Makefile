@@ -35,7 +35,7 @@ demo: setup
 
 # Two pytest workers (CI's cores), each taking whole files (a file's fixtures, such as the viewer's server
 # and browser, are set up once): 343 s against 470 s in one process on this 2-core machine. On a clean
-# machine (empty bake and Mesa shader caches) the suite took 533 s on 2026-12-07: 703 s before the bake
+# machine (empty bake and Mesa shader caches) the suite took 517 s on 2026-12-07: 703 s before the bake
 # cache's lock and the fast table's phasors, then 583 s, and 610 s with later tests before the diffraction
 # bakes' real gridding products.
 TEST_WORKERS ?= 2
