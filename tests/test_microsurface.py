@@ -643,6 +643,13 @@ vec4 transferProfileTest(vec3 c, vec3 l, float reach) {
     float lift = max(-ms_gap(q), 0.0) + max(1e-3 * ms_heightBound, 2e-6 * (length(q) + 1.0));
     return vec4(ms_shadowProfile(q, l, 768, reach, 0.0).x, q.y, lift, ms_heightBound);
 }
+vec4 transferSphereProfileTest(vec3 c, vec3 l, float reach) {
+    ms_setWeights(vec3(0.0), vec3(0.0), true);
+    vec3 n = normalize(c);
+    vec3 q = n * (ms_radius + ms_surfaceHeight(ms_radius * n));
+    float lift = max(-ms_gap(q), 0.0) + max(1e-3 * ms_heightBound, 2e-6 * (length(q) + 1.0));
+    return vec4(ms_shadowProfile(q, l, 768, reach, 0.0).x, length(q), lift, ms_heightBound);
+}
 vec2 transferMarchTest(vec3 o, vec3 d) {
     ms_setWeights(vec3(0.0), vec3(0.0), true);
     ms_steps = 0;
@@ -651,8 +658,11 @@ vec2 transferMarchTest(vec3 o, vec3 d) {
 """
 
 
-def _eval_transfer(name: str, expression: str, inputs: dict, components: int) -> np.ndarray:
-    """`expression` over heightfield.glsl with TRANSFER_DRIVER through the transfer function `name`."""
+def _eval_transfer(
+    name: str, expression: str, inputs: dict, components: int, sphere: bool = False
+) -> np.ndarray:
+    """`expression` over heightfield.glsl with TRANSFER_DRIVER through the transfer function `name` (on the
+    unit sphere with `sphere`, else on the plane)."""
     material = MicrosurfaceMaterial(
         TRANSFER_DRIVER, None, {}, transfer=TRANSFER_FUNCTIONS[name](), transfer_scale=TRANSFER_SCALE
     )
@@ -664,7 +674,7 @@ def _eval_transfer(name: str, expression: str, inputs: dict, components: int) ->
             inputs,
             components,
             includes=INCLUDES,
-            defines={"MS_TRANSFER": True},
+            defines={"MS_TRANSFER": True, **({"MS_SPHERE": True} if sphere else {})},
             uniforms={**material.octave_uniforms(), **transfer},
             textures={"u_transferTable": resources["textures"]["u_transferTable"]},
             prelude=TRANSFER_SLAB_PRELUDE,
@@ -743,9 +753,7 @@ def test_a_profile_stopping_where_no_clearance_ahead_can_be_lower_finds_the_leas
     light = np.stack([cos_e * np.cos(azimuth), np.full(n, sin_e), cos_e * np.sin(azimuth)], 1)
     c = np.zeros((n, 3))
     c[:, 0], c[:, 2] = rng.uniform(-1, 1, (2, n))
-    heights = TRANSFER_SCALE * TRANSFER_FUNCTIONS[name]().g(
-        np.linspace(-2, 2, 4001)
-    )  # the table's driver range
+    heights = TRANSFER_SCALE * TRANSFER_FUNCTIONS[name]().g(np.linspace(-2, 2, 4001))  # the table's range
     top = max(heights.max(), 0.0)
     reach = 0.25 * max(-heights.min(), top)
     least, q_height, lift, height_bound = _eval_transfer(
@@ -761,6 +769,41 @@ def test_a_profile_stopping_where_no_clearance_ahead_can_be_lower_finds_the_leas
     open_rays = scan >= -reach
     assert (np.abs(least - scan)[open_rays] <= 0.05 * reach).mean() >= 0.98
     assert ((least < -reach) == (scan < -reach)).mean() >= 0.98
+
+
+def test_a_profile_on_the_sphere_does_not_stop_while_its_ray_descends():
+    """On the sphere a light a little below the macro horizon still reaches the relief: its ray first
+    descends, then climbs. ms_shadowProfile's early stop (altitude - top >= c*) holds only once the ray
+    climbs. With reach 0 (one shading sample) the sponge's flat top starts rays at its top, where without
+    that condition the profile stopped at once and called them lit. Against a dense scan of the same rays
+    (NumPy, the oracle), the light 1 degree below the horizon: lit or not as the scan finds for at least
+    98 % of the rays (measured 99.7 %, 9 % of them lit; 93 % without the condition)."""
+    name, n = "sponge", 300
+    rng = _rng(n, 81, 12)
+    c = rng.normal(size=(n, 3))
+    c /= np.linalg.norm(c, axis=1, keepdims=True)
+    tangent = np.cross(c, rng.normal(size=(n, 3)))
+    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+    e = np.radians(-1.0)
+    light = np.cos(e) * tangent + np.sin(e) * c
+    least, q_radius, lift, height_bound = _eval_transfer(
+        name, "transferSphereProfileTest(c, l, 0.0)", {"c": c, "l": light}, 4, sphere=True
+    ).T
+    heights = TRANSFER_SCALE * TRANSFER_FUNCTIONS[name]().g(np.linspace(-2, 2, 4001))  # the table's range
+    top, bottom = max(heights.max(), 0.0), min(heights.min(), 0.0)
+    o = c * (q_radius + lift)[:, None]  # the unit sphere; the ray runs to the slab's floor or out of its top
+    b, oo = np.einsum("ij,ij->i", o, light), np.einsum("ij,ij->i", o, o)
+    inner = b * b - oo + (1 + bottom) ** 2
+    floor = (inner > 0) & (-b - np.sqrt(np.maximum(inner, 0)) > 0)
+    end = np.where(floor, -b - np.sqrt(np.maximum(inner, 0)), -b + np.sqrt(b * b - oo + (1 + top) ** 2))
+    start = 2e-3 * height_bound[0]
+    t = start + np.linspace(0.0, 1.0, 2000)[None, :] * (end - start)[:, None]
+    x = o[:, None, :] + t[..., None] * light[:, None, :]
+    radius = np.linalg.norm(x, axis=-1)
+    driver = TRANSFER_DRIVER.value((x / radius[..., None]).reshape(-1, 3)).reshape(radius.shape)
+    lit = (radius - 1.0 - TRANSFER_SCALE * TRANSFER_FUNCTIONS[name]().g(driver) >= 0).all(axis=1)
+    assert 0.02 < lit.mean() < 0.5
+    assert ((least >= 0) == lit).mean() >= 0.98
 
 
 # --- the filtered pipeline in GLSL against Heitz and Neyret's closed form ----------------------------------
