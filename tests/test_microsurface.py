@@ -636,19 +636,23 @@ vec4 transferShadowTest(vec3 c, vec3 l) {
     float symmetric = ms_march(o, l, slab, 768, false) < 0.0 ? 1.0 : 0.0;
     return vec4(lit, q.y, steps, (symmetric > 0.5 ? 1.0 : -1.0) * (float(ms_steps) + 1.0));
 }
+// (the profile's least clearance, how far above q along the normal its ray starts, ms_heightBound)
+vec3 profileFrom(vec3 q, vec3 l, float reach) {
+    float lift = max(-ms_gap(q), 0.0) + max(1e-3 * ms_heightBound, 2e-6 * (length(q) + 1.0));
+    return vec3(ms_shadowProfile(q, l, 768, reach, 0.0).x, lift, ms_heightBound);
+}
 vec4 transferProfileTest(vec3 c, vec3 l, float reach) {
     ms_setWeights(vec3(0.0), vec3(0.0), true);
     vec3 q = vec3(c.x, ms_surfaceHeight(vec3(c.x, 0.0, c.z)), c.z);
-    // the profile starts this far above q
-    float lift = max(-ms_gap(q), 0.0) + max(1e-3 * ms_heightBound, 2e-6 * (length(q) + 1.0));
-    return vec4(ms_shadowProfile(q, l, 768, reach, 0.0).x, q.y, lift, ms_heightBound);
+    vec3 profile = profileFrom(q, l, reach);
+    return vec4(profile.x, q.y, profile.yz);
 }
 vec4 transferSphereProfileTest(vec3 c, vec3 l, float reach) {
     ms_setWeights(vec3(0.0), vec3(0.0), true);
     vec3 n = normalize(c);
     vec3 q = n * (ms_radius + ms_surfaceHeight(ms_radius * n));
-    float lift = max(-ms_gap(q), 0.0) + max(1e-3 * ms_heightBound, 2e-6 * (length(q) + 1.0));
-    return vec4(ms_shadowProfile(q, l, 768, reach, 0.0).x, length(q), lift, ms_heightBound);
+    vec3 profile = profileFrom(q, l, reach);
+    return vec4(profile.x, length(q), profile.yz);
 }
 vec2 transferMarchTest(vec3 o, vec3 d) {
     ms_setWeights(vec3(0.0), vec3(0.0), true);
@@ -681,6 +685,12 @@ def _eval_transfer(
         )
     finally:
         material.release(resources)
+
+
+def _transfer_range(name: str) -> tuple[float, float]:
+    """(lowest, highest) h = 0.03 g(f) over the transfer table's driver range, each widened to include 0."""
+    heights = TRANSFER_SCALE * TRANSFER_FUNCTIONS[name]().g(np.linspace(-2, 2, 4001))
+    return min(heights.min(), 0.0), max(heights.max(), 0.0)
 
 
 def _transfer_gaps(name: str, points: np.ndarray) -> np.ndarray:
@@ -753,9 +763,8 @@ def test_a_profile_stopping_where_no_clearance_ahead_can_be_lower_finds_the_leas
     light = np.stack([cos_e * np.cos(azimuth), np.full(n, sin_e), cos_e * np.sin(azimuth)], 1)
     c = np.zeros((n, 3))
     c[:, 0], c[:, 2] = rng.uniform(-1, 1, (2, n))
-    heights = TRANSFER_SCALE * TRANSFER_FUNCTIONS[name]().g(np.linspace(-2, 2, 4001))  # the table's range
-    top = max(heights.max(), 0.0)
-    reach = 0.25 * max(-heights.min(), top)
+    bottom, top = _transfer_range(name)
+    reach = 0.25 * max(-bottom, top)
     least, q_height, lift, height_bound = _eval_transfer(
         name, "transferProfileTest(c, l, r)", {"c": c, "l": light, "r": np.full(n, reach)}, 4
     ).T
@@ -789,8 +798,7 @@ def test_a_profile_on_the_sphere_does_not_stop_while_its_ray_descends():
     least, q_radius, lift, height_bound = _eval_transfer(
         name, "transferSphereProfileTest(c, l, 0.0)", {"c": c, "l": light}, 4, sphere=True
     ).T
-    heights = TRANSFER_SCALE * TRANSFER_FUNCTIONS[name]().g(np.linspace(-2, 2, 4001))  # the table's range
-    top, bottom = max(heights.max(), 0.0), min(heights.min(), 0.0)
+    bottom, top = _transfer_range(name)
     o = c * (q_radius + lift)[:, None]  # the unit sphere; the ray runs to the slab's floor or out of its top
     b, oo = np.einsum("ij,ij->i", o, light), np.einsum("ij,ij->i", o, o)
     inner = b * b - oo + (1 + bottom) ** 2

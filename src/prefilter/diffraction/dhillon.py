@@ -83,6 +83,7 @@ def bake_dhillon_tables(
     kept, term = np.arange(order + 1)[:, None], np.arange(full + 1)[None, :]  # n, p
     binomial = scipy.special.comb(term, kept) * (term >= kept)  # (N + 1, N₀ + 1)
     wavelengths, weights = spectral_weights(step_nm)
+    products, other = np.empty((2, order + 1, CROSS_ROWS, nu))  # the cross products' scratch
     for lam, weight in zip(wavelengths, weights, strict=True):
         k = 2.0 * math.pi / lam
         sx, sy, gu, gv = window_gridding(k, sigma, alpha_bins, beta_bins, u, v)
@@ -96,7 +97,6 @@ def bake_dhillon_tables(
         # accuracy (an FFT product would leave a floor of 1e-16 max|a|² that (w − w₀)^2N multiplies)
         # (in blocks of CROSS_ROWS rows of v, which stay in cache through the N + 1 passes: 13 -> 4 s)
         cross = np.zeros((length, nv, nu))
-        products, other = np.empty((2, order + 1, CROSS_ROWS, nu))
         for r0 in range(0, nv, CROSS_ROWS):
             rows_v = slice(r0, min(r0 + CROSS_ROWS, nv))
             block_re, block_im, block = re[:, rows_v], im[:, rows_v], cross[:, rows_v]

@@ -750,7 +750,8 @@ vec4 ms_shadowProfile(vec3 q, vec3 l, int maxSteps, float reach, float skip) {
     if (ms_heightBound <= 8.0 * eps) return none;
     vec3 n = ms_macroNormal(q);
     vec3 o = q + n * (max(-ms_gap(q), 0.0) + max(1e-3 * ms_heightBound, eps));
-    vec3 slab = ms_slab(o, l, ms_reliefRange() + vec2(0.0, reach));  // clearances below reach count
+    vec2 range = ms_reliefRange();
+    vec3 slab = ms_slab(o, l, range + vec2(0.0, reach));  // clearances below reach count
     if (slab.y <= slab.x) return none;
     float t = max(2e-3 * ms_heightBound, 2.0 * eps);
 #ifndef MS_TRANSFER
@@ -764,11 +765,12 @@ vec4 ms_shadowProfile(vec3 q, vec3 l, int maxSteps, float reach, float skip) {
 #endif
     slopeBound = min(slopeBound, ms_slopeBound);
     float least = reach;
-    float top = ms_reliefRange().y;
     vec3 at = vec3(0.0);
     for (int i = 0; i < maxSteps; ++i) {
-        ms_steps += 1;
         vec3 x = o + t * l;
+        vec3 up = ms_macroNormal(x);
+        if (ms_altitude(x) - range.y >= least && dot(l, up) >= 0.0) break;  // final (above)
+        ms_steps += 1;
         float gap = ms_gapBound(x);  // exact where <= 0; where it is looser the ray is well clear
         if (t > skip && gap < least) {
             least = gap;
@@ -778,12 +780,10 @@ vec4 ms_shadowProfile(vec3 q, vec3 l, int maxSteps, float reach, float skip) {
 #ifndef MS_TRANSFER
         if (least < 0.0) minStep *= MS_PROFILE_STEP_GROWTH;
 #endif
-        float dn = abs(dot(l, ms_macroNormal(x)));
+        float dn = abs(dot(l, up));
         float rate = dn + slopeBound * sqrt(max(1.0 - dn * dn, 0.0));
         t += max((gap > 0.0 ? MS_RELAX * (gap - min(least, 0.0)) : max(-gap, 0.5 * reach)) / max(rate, 1e-6), minStep);
         if (t >= slab.y) break;
-        vec3 next = o + t * l;
-        if (ms_altitude(next) - top >= least && dot(l, ms_macroNormal(next)) >= 0.0) break;  // final (above)
     }
     if (least >= reach) return none;
     vec4 fg = ms_fractalGrad(ms_project(at), 0, ms_heightOctaves);
