@@ -1,5 +1,7 @@
 """NumPy oracles shared by several test files (independent of the shaders they check)."""
 
+import math
+
 import numpy as np
 
 
@@ -14,3 +16,9 @@ def bilinear(h: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     top = h[i0, j0] * (1 - fx) + h[i0, j1] * fx
     bottom = h[i1, j0] * (1 - fx) + h[i1, j1] * fx
     return top * (1 - fy) + bottom * fy
+
+
+def gaussian_density(v: float, mu: float, sigma: float) -> float:
+    """N(v; μ, σ²) of one scalar, for adaptive quadratures (scipy.stats' pdf costs ~20x per call)."""
+    z = (v - mu) / sigma
+    return math.exp(-0.5 * z * z) / (sigma * math.sqrt(2.0 * math.pi))
