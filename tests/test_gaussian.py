@@ -77,6 +77,19 @@ def test_preconvolved_texels_equal_quadrature(wrap):
     assert worst <= 1e-3  # the issue's bar; measured ~1e-7 (float32 storage)
 
 
+@pytest.mark.parametrize("entries", [64, 4096])
+def test_clamp_rows_baked_on_the_edge_lattice_equal_quadrature(entries):
+    """The clamp bake sums its edge form by FFT where the μ texels and the entry edges share a lattice: a
+    texel is 1/4 entry for 64 entries (four residue classes), 16 entries for 4096. Any texel of any row
+    against adaptive quadrature, to the float32 storage."""
+    table = _table("clamp", entries)
+    baked = preconvolve(table, n_sigma=32, sigma_max=0.5)
+    mus, sigmas = baked.mu_nodes(), baked.sigma_nodes()
+    rng = np.random.default_rng(entries)
+    for i, j in zip(rng.integers(len(mus), size=6), rng.integers(1, len(sigmas), size=6), strict=True):
+        np.testing.assert_allclose(baked.data[j, i], _quadrature(table, mus[i], sigmas[j]), atol=1e-6)
+
+
 @pytest.mark.parametrize("wrap", ["modulo", "clamp"])
 def test_edge_form_equals_quadrature_off_grid(wrap):
     table = _table(wrap)

@@ -31,7 +31,10 @@ like it (cm_gaussian on its own texture); surface-filter's slope colours under a
 
 Bake: modulo tables by the exact Fourier series of the piecewise-constant table times the Gaussian's
 transfer function exp(−2π²σ²k²), |k| <= 2 n (exact to 1e-15 for σ >= 1/n); narrower σ and all clamp
-tables by the edge form C̄ = c_last + Σ_e (c_{e−1} − c_e) Φ((x_e − μ)/σ) over the entry edges x_e.
+tables by the edge form C̄ = c_last + Σ_e (c_{e−1} − c_e) Φ((x_e − μ)/σ) over the entry edges x_e. Where the
+μ texel is a simple fraction p/q of an entry (the default grid: 256 texels per table, a power of two
+long), a clamp row is that sum as q discrete convolutions of the jumps with Φ on a lattice, by FFT (same
+values to 2e-14; a 4096-entry table's 256 rows bake in 0.5 s instead of 17 s).
 Defaults: 256 x 256 (modulo), 256 per table period in μ (clamp), sigma_max = 1, mu_range = (-1, 2);
 a material's [object.material.preconvolved] table overrides them (size = [n_mu, n_sigma], sigma_max,
 mu_range).
@@ -40,9 +43,11 @@ mu_range).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from fractions import Fraction
 
 import moderngl
 import numpy as np
+import scipy.fft
 from scipy.special import ndtr
 
 from prefilter.bake_cache import cached
@@ -207,12 +212,44 @@ def _bake_modulo(table: ColourTable, n_mu: int, n_sigma: int, sigma_max: float) 
     return out
 
 
+def _lattice_ratio(ratio: float, n_mu: int) -> Fraction | None:
+    """p/q = the μ texel in entry widths, if it is a fraction with q small enough for the lattice bake."""
+    fraction = Fraction(ratio).limit_denominator(max(1, n_mu // 16))
+    return fraction if abs(float(fraction) - ratio) <= 1e-12 * max(ratio, 1.0) else None
+
+
+def _edge_form_on_lattice(table: ColourTable, mu: np.ndarray, sigma: float, ratio: Fraction) -> np.ndarray:
+    """The edge form C̄(μ_i, σ) = c_last + Σ_e (c_{e−1} − c_e) Φ((e − n μ_i)/(n σ)) over the entry edges e =
+    1 .. n − 1 for μ_i in steps of p/q entry widths (σ > 0), as q discrete convolutions: the μ_i of one
+    residue class i ≡ c (mod q) lie p apart, on a unit lattice shifted by y_c = n μ_c, so each sum is the
+    jumps convolved with Φ((d − y_c)/(n σ)) at integer d (one real FFT product, exact to rounding)."""
+    n = table.n
+    entries = table.entries.astype(np.float64)
+    jumps = entries[:-1] - entries[1:]  # a[e'] = c_{e'} - c_{e'+1} at edge e = e' + 1
+    p, q = ratio.numerator, ratio.denominator
+    out = np.empty((len(mu), 4))
+    for c in range(min(q, len(mu))):
+        count = len(range(c, len(mu), q))
+        span = p * (count - 1)  # lattice points m = 0 .. span, μ at m = p k
+        d = np.arange(1 - span, n)  # e − m over every edge and lattice point
+        kernel = ndtr((d[::-1] - n * mu[c]) / (n * sigma))  # reversed: the convolution's partner
+        size = scipy.fft.next_fast_len(n - 1 + len(d) - 1, real=True)
+        product = scipy.fft.rfft(jumps, size, axis=0) * scipy.fft.rfft(kernel, size)[:, None]
+        full = scipy.fft.irfft(product, size, axis=0)
+        out[c::q] = entries[-1] + full[n - 2 : n - 1 + span : p]  # (a * reversed kernel)[n − 2 + m]
+    return out
+
+
 def _bake_clamp(table: ColourTable, n_mu: int, n_sigma: int, sigma_max: float, lo: float, hi: float):
     mu = lo + (np.arange(n_mu) + 0.5) * (hi - lo) / n_mu
     sigma = sigma_max * np.arange(n_sigma) / (n_sigma - 1)
     out = np.empty((n_sigma, n_mu, 4))
+    ratio = _lattice_ratio(table.n * (hi - lo) / n_mu, n_mu)
     for j in range(n_sigma):  # row by row keeps memory at n_mu x n edges
-        out[j] = gaussian_average(table, mu, np.full(n_mu, sigma[j]))
+        if ratio is not None and sigma[j] > 0:
+            out[j] = _edge_form_on_lattice(table, mu, float(sigma[j]), ratio)
+        else:
+            out[j] = gaussian_average(table, mu, np.full(n_mu, sigma[j]))
     return out
 
 
