@@ -35,14 +35,16 @@ demo: setup
 
 # Two pytest workers (CI's cores), each taking whole files (a file's fixtures, such as the viewer's server
 # and browser, are set up once): 343 s against 470 s in one process on this 2-core machine. On a clean
-# machine (empty bake and Mesa shader caches) the suite took 517 s on 2026-12-07: 703 s before the bake
-# cache's lock and the fast table's phasors, then 583 s, and 610 s with later tests before the diffraction
-# bakes' real gridding products.
+# machine (empty bake and Mesa shader caches) the suite took 517-576 s on 2026-12-07 (703 s before the bake
+# cache's lock and the fast table's phasors). Each worker runs its BLAS and llvmpipe single-threaded: with
+# their default thread per core, two workers kept four or more threads busy on two cores (OpenBLAS's
+# threads spin while they wait), and the clean-machine suite took 573 s; 448 s with one BLAS thread, 409 s
+# with llvmpipe's rasteriser on one thread too (2026-12-07, 793 tests).
 TEST_WORKERS ?= 2
 test: setup .cache/chromium-ok
 	$(VENV)/bin/ruff check src tests
 	$(VENV)/bin/ruff format --check src tests
-	$(VENV)/bin/pytest -q -n $(TEST_WORKERS) --dist loadfile
+	OPENBLAS_NUM_THREADS=1 LP_NUM_THREADS=1 $(VENV)/bin/pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 bench: setup
 	$(VENV)/bin/prefilter bench --json out/bench.json
