@@ -51,11 +51,23 @@ def window_gridding(k: float, sigma: float, alpha_bins, beta_bins, u, v):
 
 
 def _unit_phasor(phase: np.ndarray) -> np.ndarray:
-    """exp(i phase) as complex64 from float32 cosines and sines: NumPy's complex exp took 9.8 ms on a 527²
-    patch against 0.8 ms (to within 1e-7), half of the fast table's bake."""
-    out = np.empty(phase.shape, np.complex64)
+    """exp(i phase) from cosines and sines, complex in the phase's precision (NumPy's complex exp took 9.8 ms
+    on a 527² patch against 0.8 ms in float32)."""
+    out = np.empty(phase.shape, np.result_type(phase.dtype, np.complex64))
     out.real, out.imag = np.cos(phase), np.sin(phase)
     return out
+
+
+def _phasor_slices(k: float, w: np.ndarray, h: np.ndarray):
+    """exp(i k w_j h) for the evenly spaced w_j, complex64, each from the last by one complex product in
+    float64 (32 products lose under 1e-14; float32 cosines and sines of every slice took a fifth of the
+    bake)."""
+    phasor = _unit_phasor(k * float(w[0]) * h)
+    turn = _unit_phasor(k * float(w[1] - w[0]) * h) if len(w) > 1 else None
+    for j in range(len(w)):
+        yield phasor.astype(np.complex64)
+        if j + 1 < len(w):
+            phasor *= turn
 
 
 def bake_fast_table(
@@ -72,10 +84,11 @@ def bake_fast_table(
     and the window's real weights grid the coefficients' real and imaginary parts as two real products
     (a complex product with real weights did twice the work); each slice's power is added to X, Y and Z in
     place. With the weights' subnormals flushed (window_gridding) the snake's table bakes in 17 s instead
-    of 42, the same to 1.2e-7 of its peak (float32 rounding)."""
+    of 42, the same to 1.2e-7 of its peak (float32 rounding); with each slice's phasors from the last
+    slice's (_phasor_slices) in 0.86 of that time (24.2 -> 20.9 s on a busier machine), the same to 1.1e-7."""
     nu, nv, nw = size
     h = np.asarray(heights, np.float64)
-    h = (h - h.mean()).astype(np.float32)
+    h = h - h.mean()
     if tiles is None and np.all(h == h[:1]):  # a grating (rows all equal): one row gives the same
         h = h[:1]  # coefficients (those at β ≠ 0 are zero); the tiling factor needs the patch's height
     rows, cols = h.shape
@@ -99,8 +112,8 @@ def bake_fast_table(
                 periodic_factor(alpha, cols * dx, tiles[0]) / tiles[0] ** 2,
             )
             sx, sy = lx, ly
-        for j, wj in enumerate(w):
-            c = scipy.fft.fft(_unit_phasor(np.float32(k * wj) * h), axis=1, workers=-1)[:, sx]
+        for j, phasor in enumerate(_phasor_slices(k, w, h)):
+            c = scipy.fft.fft(phasor, axis=1, workers=-1)[:, sx]
             c = scipy.fft.fft(c, axis=0, workers=-1)[sy] / (rows * cols)
             if tiles is None:
                 parts = gv @ np.concatenate([c.real, c.imag], axis=1)  # (v, 2 bins): real, imaginary

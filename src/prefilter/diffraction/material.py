@@ -162,8 +162,9 @@ class DiffractionMaterial:
             "tiles": list(self.tiles) if self.tiles else None,
             # 2: every bin of the window, no Taylor truncation (1: the shader's 2 x 2 bins); 3: the phasors
             # from float32 cosines and sines (the same table to within 1e-7 of each phasor); 4: real gridding
-            # products, the DFT's second pass over the bins in reach only (the same to 1.2e-7 of the peak)
-            "version": 4,
+            # products, the DFT's second pass over the bins in reach only (the same to 1.2e-7 of the peak);
+            # 5: each w-slice's phasors from the last one's by a float64 product (the same to 1.1e-7)
+            "version": 5,
         }
         data = cached_arrays(
             "df-fast",
