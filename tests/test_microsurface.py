@@ -638,7 +638,7 @@ vec4 transferShadowTest(vec3 c, vec3 l) {
 }
 // (the profile's least clearance, how far above q along the normal its ray starts, ms_heightBound)
 vec3 profileFrom(vec3 q, vec3 l, float reach) {
-    float lift = max(-ms_gap(q), 0.0) + max(1e-3 * ms_heightBound, 2e-6 * (length(q) + 1.0));
+    float lift = length(ms_shadowOrigin(q, 2e-6 * (length(q) + 1.0)) - q);  // the profile's eps
     return vec3(ms_shadowProfile(q, l, 768, reach, 0.0).x, lift, ms_heightBound);
 }
 vec4 transferProfileTest(vec3 c, vec3 l, float reach) {

@@ -218,38 +218,39 @@ def _lattice_ratio(ratio: float, n_mu: int) -> Fraction | None:
     return fraction if abs(float(fraction) - ratio) <= 1e-12 * max(ratio, 1.0) else None
 
 
-def _edge_form_on_lattice(table: ColourTable, mu: np.ndarray, sigma: float, ratio: Fraction) -> np.ndarray:
+def _edge_form_on_lattice(table: ColourTable, mu: np.ndarray, sigmas: np.ndarray, ratio: Fraction):
     """The edge form C̄(μ_i, σ) = c_last + Σ_e (c_{e−1} − c_e) Φ((e − n μ_i)/(n σ)) over the entry edges e =
-    1 .. n − 1 for μ_i in steps of p/q entry widths (σ > 0), as q discrete convolutions: the μ_i of one
-    residue class i ≡ c (mod q) lie p apart, on a unit lattice shifted by y_c = n μ_c, so each sum is the
-    jumps convolved with Φ((d − y_c)/(n σ)) at integer d (one real FFT product, exact to rounding)."""
+    1 .. n − 1, for μ_i in steps of p/q entry widths and every σ > 0 of `sigmas`, as q discrete convolutions
+    a row: the μ_i of one residue class i ≡ c (mod q) lie p apart, on a unit lattice shifted by y_c = n μ_c,
+    so each sum is the jumps convolved with Φ((d − y_c)/(n σ)) at integer d (a real FFT product, exact to
+    rounding; the jumps' transform is made once per class)."""
     n = table.n
     entries = table.entries.astype(np.float64)
     jumps = entries[:-1] - entries[1:]  # a[e'] = c_{e'} - c_{e'+1} at edge e = e' + 1
     p, q = ratio.numerator, ratio.denominator
-    out = np.empty((len(mu), 4))
+    out = np.empty((len(sigmas), len(mu), 4))
     for c in range(min(q, len(mu))):
-        count = len(range(c, len(mu), q))
-        span = p * (count - 1)  # lattice points m = 0 .. span, μ at m = p k
-        d = np.arange(1 - span, n)  # e − m over every edge and lattice point
-        kernel = ndtr((d[::-1] - n * mu[c]) / (n * sigma))  # reversed: the convolution's partner
+        span = p * (len(range(c, len(mu), q)) - 1)  # lattice points m = 0 .. span, μ at m = p k
+        d = np.arange(1 - span, n)[::-1]  # e − m over every edge and lattice point, reversed: the partner
         size = scipy.fft.next_fast_len(n - 1 + len(d) - 1, real=True)
-        product = scipy.fft.rfft(jumps, size, axis=0) * scipy.fft.rfft(kernel, size)[:, None]
-        full = scipy.fft.irfft(product, size, axis=0)
-        out[c::q] = entries[-1] + full[n - 2 : n - 1 + span : p]  # (a * reversed kernel)[n − 2 + m]
+        spectrum = scipy.fft.rfft(jumps, size, axis=0)
+        for j, sigma in enumerate(sigmas):
+            kernel = scipy.fft.rfft(ndtr((d - n * mu[c]) / (n * sigma)), size)
+            full = scipy.fft.irfft(spectrum * kernel[:, None], size, axis=0)
+            out[j, c::q] = entries[-1] + full[n - 2 : n - 1 + span : p]  # (a * reversed kernel)[n − 2 + m]
     return out
 
 
 def _bake_clamp(table: ColourTable, n_mu: int, n_sigma: int, sigma_max: float, lo: float, hi: float):
     mu = lo + (np.arange(n_mu) + 0.5) * (hi - lo) / n_mu
     sigma = sigma_max * np.arange(n_sigma) / (n_sigma - 1)
-    out = np.empty((n_sigma, n_mu, 4))
     ratio = _lattice_ratio(table.n * (hi - lo) / n_mu, n_mu)
+    if ratio is not None:  # row 0 (σ = 0) is the table itself
+        first = gaussian_average(table, mu, np.zeros(n_mu))
+        return np.concatenate([first[None], _edge_form_on_lattice(table, mu, sigma[1:], ratio)])
+    out = np.empty((n_sigma, n_mu, 4))
     for j in range(n_sigma):  # row by row keeps memory at n_mu x n edges
-        if ratio is not None and sigma[j] > 0:
-            out[j] = _edge_form_on_lattice(table, mu, float(sigma[j]), ratio)
-        else:
-            out[j] = gaussian_average(table, mu, np.full(n_mu, sigma[j]))
+        out[j] = gaussian_average(table, mu, np.full(n_mu, sigma[j]))
     return out
 
 

@@ -669,14 +669,18 @@ void ms_marchColumn(vec3 o, vec3 d, vec3 up, vec2 lowest, vec2 stride, int count
     }
 }
 
-// 1 if the light direction l is unoccluded from the surface point q, else 0. The ray starts a little above
-// the surface at q (the marcher's hit may lie just below it); below float32's resolution at q (a nearly
-// flat coarse surface far away) there is nothing to shadow.
+// Where a shadow ray from the surface point q starts: a little above the surface along the macro normal (the
+// marcher's hit may lie just below it), by at least eps, float32's resolution at q.
+vec3 ms_shadowOrigin(vec3 q, float eps) {
+    return q + ms_macroNormal(q) * (max(-ms_gap(q), 0.0) + max(1e-3 * ms_heightBound, eps));
+}
+
+// 1 if the light direction l is unoccluded from the surface point q, else 0 (the ray from ms_shadowOrigin);
+// below float32's resolution at q (a nearly flat coarse surface far away) there is nothing to shadow.
 float ms_shadow(vec3 q, vec3 l, int maxSteps) {
     float eps = 2e-6 * (length(q) + 1.0);
     if (ms_heightBound <= 8.0 * eps) return 1.0;
-    vec3 n = ms_macroNormal(q);
-    vec3 o = q + n * (max(-ms_gap(q), 0.0) + max(1e-3 * ms_heightBound, eps));
+    vec3 o = ms_shadowOrigin(q, eps);
     vec3 slab = ms_slab(o, l, ms_reliefRange());
     if (slab.y <= slab.x) return 1.0;
     slab.x = max(2e-3 * ms_heightBound, 2.0 * eps);
@@ -748,8 +752,7 @@ vec4 ms_shadowProfile(vec3 q, vec3 l, int maxSteps, float reach, float skip) {
     vec4 none = vec4(1e30, 0.0, 0.0, 0.0);
     float eps = 2e-6 * (length(q) + 1.0);
     if (ms_heightBound <= 8.0 * eps) return none;
-    vec3 n = ms_macroNormal(q);
-    vec3 o = q + n * (max(-ms_gap(q), 0.0) + max(1e-3 * ms_heightBound, eps));
+    vec3 o = ms_shadowOrigin(q, eps);
     vec2 range = ms_reliefRange();
     vec3 slab = ms_slab(o, l, range + vec2(0.0, reach));  // clearances below reach count
     if (slab.y <= slab.x) return none;
