@@ -35,7 +35,7 @@ ratios (the shader: MS_SLOPE_LEAN in microsurface.frag, the same constants); tes
 checks it against a fresh ray cast of a fractal it was not fitted to. The shader scales the extra lean by
 the share of the height variance left to the statistics (the coarse hills' masking is rendered where they
 are geometry). On the renders it took the far rows of the irradiance terrain, which were too bright by up
-to 0.008, to within 0.004 of the reference (docs/microsurface.md).
+to 0.008, to within 0.004 of the reference (docs/microsurface-history.md).
 
 `visible_height_mean` is the oracle: rays at a given elevation cross the macro plane at uniform points
 (the projected-area weighting of pixels), are marched in steps of 0.12 of the finest lattice cell and

@@ -78,7 +78,7 @@ const vec2 MS_TRIANGLE_OFFSETS[3] = vec2[3](vec2(1.0, 0.0), vec2(-0.5, -0.866025
 // How far surface-filter's shading samples close up where the coarse relief stands out of the pixel
 // (ms_shade's gate = MS_RELIEF_CLOSING x ms_reliefGate): at gate 1 they keep 80 % of their offsets. They
 // collapsed onto the centre until 2026-12-05 and kept 65 % until their weights below (later that day);
-// docs/microsurface.md ("Shading samples") has the measurements.
+// docs/microsurface-history.md ("Shading samples") has the measurements.
 #ifndef MS_RELIEF_CLOSING
 #define MS_RELIEF_CLOSING 0.2
 #endif
@@ -215,7 +215,7 @@ vec2 ms_microHeights(float lt, float lc, float sigmaT, float sigmaC) {
 // 0.0386, micro-slopes-terrain (9 samples) 0.0864 -> 0.0841 and 0.0850, micro-heights-terrain 0.0806 -> 0.0801
 // and 0.0814, micro-heights-grazing 0.0516 -> 0.0513 and 0.0519; the spheres within 0.0001, their relief gate
 // about 0. texture-filter keeps the rendered surface's slopes: with β₁'s it went 0.140 -> 0.165 on the
-// irradiance terrain and 0.142 -> 0.158 on the heights terrain. docs/microsurface.md, "The slopes that shade".
+// irradiance terrain and 0.142 -> 0.158 on the heights terrain. docs/microsurface-history.md, "The slopes that shade".
 struct MsSurface {
     float h;
     vec2 slope;
@@ -804,7 +804,7 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
         // field 3 % too dark (luminance -0.005 on micro-heights-terrain). The weight is area^(1 - ρ), ρ the
         // correlation of the sample's coarse slope with q's, exp(-(c κ |δ|)² / 2) for the sample's offset δ
         // along the macro surface and the coarse RMS frequency κ: 1 on q's facet, the area for a sample
-        // independent of q. c = MS_SLOPE_DECORRELATION; docs/microsurface.md has the measurements.
+        // independent of q. c = MS_SLOPE_DECORRELATION; docs/microsurface-history.md has the measurements.
         float decorrelation = MS_SLOPE_DECORRELATION * ms_coarseFrequency * length(lag);
         float correlation = exp(-0.5 * decorrelation * decorrelation);  // 1 with one sample: its weight cancels
         // (every sample's facets facing away from the eye, area 0: a near miss of the march; their plain mean)
