@@ -49,6 +49,7 @@ from prefilter import PrefilterError
 from prefilter.colormap.gaussian import parse_preconvolve_options, preconvolve
 from prefilter.colormap.table import ColourTable, parse_colour_table
 from prefilter.gl.uniforms import bind_samplers, set_uniforms
+from prefilter.microsurface.curved_shadowing import CURVED_DESCENT, CURVED_ELEVATION
 from prefilter.microsurface.fractal_masking import SLOPE_LEAN, SLOPE_LEAN_FADE_DEG, masking_uniform
 from prefilter.microsurface.heightfield import LATTICE_FROM_OBJECT, MAX_OCTAVES, Fractal
 from prefilter.scene import Reader, register_material
@@ -135,6 +136,8 @@ class MicrosurfaceMaterial:
         defines["MS_RELIEF_RAYS"] = SHADING_GRIDS[self.shading_samples][1] if self.marched_rows else 1
         defines["MS_SLOPE_LEAN"] = SLOPE_LEAN  # the fBm's visible slopes (fractal_masking.slope_lean)
         defines["MS_SLOPE_LEAN_FADE"] = float(np.sin(np.radians(SLOPE_LEAN_FADE_DEG)))
+        defines["MS_CURVED_ELEVATION"] = CURVED_ELEVATION  # Smith over a sphere (curved_shadowing.py)
+        defines["MS_CURVED_DESCENT"] = CURVED_DESCENT
         if self.environment is not None:
             defines["MS_IRRADIANCE"] = True
         return defines

@@ -142,3 +142,22 @@ float ms_visibility(float h, float sigmaH, float lam) {
 float ms_averageVisibility(float lamO, float lamI) {
     return (1.0 + lamO) / (1.0 + lamO + lamI);
 }
+
+// Smith's shadowing over a sphere of radius R (curved_shadowing.py; beyond the paper): a ray's altitude over
+// the macro surface grows by t²/2R, so relief of height deviation sigma sees its slope μ = ω.z / |ω.xy|
+// raised to μ_e = (μ⁺ + sqrt(μ⁺² + 4kσ/R)) / 2 (k fitted to a ray cast over curving fBm). Returns ω with
+// that slope (unit length).
+vec3 ms_curvedLight(vec3 w, float sigma, float radius, float k) {
+    float across = length(w.xy);
+    if (across < 1e-6) return w;
+    float mu = max(w.z / across, 0.0);
+    float raised = 0.5 * (mu + sqrt(mu * mu + 4.0 * k * sigma / radius));
+    return normalize(vec3(w.xy, raised * across));
+}
+
+// Below the horizon (μ < 0) the ray first dives μ²R/2 under its start before it climbs: the share of the
+// light that clears the dive, exp(-μ²R / 2bσ); 1 at and above the horizon.
+float ms_curvedDescent(vec3 w, float sigma, float radius, float b) {
+    float mu = min(w.z / max(length(w.xy), 1e-6), 0.0);
+    return exp(-mu * mu * radius / (2.0 * b * max(sigma, 1e-12)));
+}
