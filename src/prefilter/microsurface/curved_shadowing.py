@@ -15,8 +15,8 @@ is multiplied by exp(−μ²R / 2bσ). Λ(μ_e) then enters V̄ (eq. 12) and D_h
 
 k and b were fitted by least squares (`calibrate`) to a ray-cast oracle (`lit_fraction`): shadow rays from
 random points of a Perlin fBm, lifted by t²/2R as they go, their lit fraction weighted by each point's
-cosine to the light. Plane Smith and the ray cast differ even on the plane (Smith's lit fraction is 7–15 %
-too high at 1–9° on these fractals: Σ_eff, fractal_masking.py, was fitted to the visible heights, not to
+cosine to the light. Plane Smith and the ray cast differ even on the plane (Smith's lit fraction is 7–16 %
+too high at 2–17° on these fractals: Σ_eff, fractal_masking.py, was fitted to the visible heights, not to
 shadows), so the model is fitted through the plane ray cast's ratio to Smith on each fractal (its `bias`),
 and only curvature is modelled here. Over four fractals (σ_h 0.00125–0.0037, R 0.4 and 1, μ from −0.08 to
 0.15) the oracle's RMS difference from the model is 0.026, from plane Smith 0.112.
