@@ -215,7 +215,8 @@ vec2 ms_microHeights(float lt, float lc, float sigmaT, float sigmaC) {
 // 0.0386, micro-slopes-terrain (9 samples) 0.0864 -> 0.0841 and 0.0850, micro-heights-terrain 0.0806 -> 0.0801
 // and 0.0814, micro-heights-grazing 0.0516 -> 0.0513 and 0.0519; the spheres within 0.0001, their relief gate
 // about 0. texture-filter keeps the rendered surface's slopes: with β₁'s it went 0.140 -> 0.165 on the
-// irradiance terrain and 0.142 -> 0.158 on the heights terrain. docs/microsurface-history.md, "The slopes that shade".
+// irradiance terrain and 0.142 -> 0.158 on the heights terrain. docs/microsurface-history.md, "The slopes that
+// shade".
 struct MsSurface {
     float h;
     vec2 slope;
@@ -360,13 +361,18 @@ struct MsLight {
 #if defined(MS_SPHERE) && !defined(MS_TRANSFER)
 // Smith's shadowing over a sphere (smith.glsl ms_curvedLight, curved_shadowing.py; beyond the paper), for
 // Gaussian reliefs only: with a transfer function the band below the horizon keeps the plane's rule, which
-// the moss's test holds to the reference (test_tall_relief_on_a_sphere_takes_light_from_below_the_macro_horizon).
+// the moss's test holds to the reference
+// (test_tall_relief_on_a_sphere_takes_light_from_below_the_macro_horizon).
 // Measured (micro-heights-sphere, 256 px, 64-spp references, surface-filter FLIP; time unchanged): 0.0596 ->
 // 0.0552 at 24 units, 0.0549 -> 0.0527 at 10, 0.0502 -> 0.0501 at the preset's 4.24; micro-snake-sphere
 // 0.0675 -> 0.0669, micro-slopes-sphere 0.0911 -> 0.0909.
 #define MS_CURVED
-vec3 ms_curvedLight(vec3 w, float sigma) { return ms_curvedLight(w, sigma, ms_radius, MS_CURVED_ELEVATION); }
-float ms_curvedDescent(vec3 w, float sigma) { return ms_curvedDescent(w, sigma, ms_radius, MS_CURVED_DESCENT); }
+vec3 ms_curvedLight(vec3 w, float sigma) {
+    return ms_curvedLight(w, sigma, ms_radius, MS_CURVED_ELEVATION);
+}
+float ms_curvedDescent(vec3 w, float sigma) {
+    return ms_curvedDescent(w, sigma, ms_radius, MS_CURVED_DESCENT);
+}
 #endif
 
 MsLight ms_light(MsMasking m, vec3 wi) {
@@ -395,9 +401,9 @@ MsLight ms_light(MsMasking m, vec3 wi) {
 // measured from the facet's normal (their in-plane parts taken along the first axis: the micro slopes are
 // isotropic); for Gaussian reliefs the light's slope over the facet is the curved one (ms_curvedLight),
 // times the share that clears the dive below the facet's horizon (ms_curvedDescent). ms_horizonVisibility
-// blends it into V̄_t / V̄_c over 0 < ω_i.z < sqrt(2σ_t/R), so light is continuous across the horizon. Measured (micro-moss-sphere, 256 px, 64 spp): the band within 0.15 below
-// the horizon was 40 % too dark with no light there; it is now within 4 % (FLIP 0.120 -> 0.111 with the
-// shadow budget).
+// blends it into V̄_t / V̄_c over 0 < ω_i.z < sqrt(2σ_t/R), so light is continuous across the horizon.
+// Measured (micro-moss-sphere, 256 px, 64 spp): the band within 0.15 below the horizon was 40 % too dark
+// with no light there; it is now within 4 % (FLIP 0.120 -> 0.111 with the shadow budget).
 float ms_facetMicroVisibility(MsMasking m, vec3 wo, vec3 wi, vec2 slope) {
     vec3 n = normalize(vec3(-slope, 1.0));
     float iz = dot(wi, n);
