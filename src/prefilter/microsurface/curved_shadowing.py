@@ -36,7 +36,7 @@ import numpy as np
 
 from prefilter.microsurface.fractal_masking import effective_slope_variance
 from prefilter.microsurface.heightfield import Fractal
-from prefilter.microsurface.smith import lambda_smith
+from prefilter.microsurface.smith import average_visibility, lambda_smith
 
 CURVED_ELEVATION = 0.45  # k
 CURVED_DESCENT = 0.22  # b
@@ -58,22 +58,19 @@ def descent_factor(mu, sigma: float, radius: float, b: float = CURVED_DESCENT):
 
 
 def smith_lit_fraction(mu, slope_variance: float) -> np.ndarray:
-    """Plane Smith: 1 / (1 + Λ(μ)) for isotropic slopes (0 at and below the horizon)."""
+    """Plane Smith: V̄ = 1 / (1 + Λ(μ)), isotropic slopes (eq. 12, Λ_o = 0; 0 at and below the horizon)."""
     mu = np.atleast_1d(np.asarray(mu, float))
-    out = np.zeros(mu.shape)
-    for i, m in enumerate(mu):
-        if m > 0.0:
-            e = np.arctan(m)
-            w = np.array([np.cos(e), 0.0, np.sin(e)])
-            out[i] = 1.0 / (1.0 + float(lambda_smith(w, np.array([slope_variance, 0.0, slope_variance]))))
-    return out
+    e = np.arctan(np.maximum(mu, 0.0))
+    w = np.stack([np.cos(e), np.zeros_like(e), np.sin(e)], axis=-1)
+    lam = lambda_smith(w, np.array([slope_variance, 0.0, slope_variance]))
+    return np.where(mu > 0.0, average_visibility(0.0, lam), 0.0)
 
 
-def curved_lit_fraction(mu, fractal: Fractal, radius: float, **constants) -> np.ndarray:
+def curved_lit_fraction(
+    mu, fractal: Fractal, radius: float, k: float = CURVED_ELEVATION, b: float = CURVED_DESCENT
+) -> np.ndarray:
     """The model: plane Smith at μ_e, times the descent factor (Σ_eff as the shader's Λ uses)."""
     sigma = float(np.sqrt(fractal.variance()))
-    k = constants.get("k", CURVED_ELEVATION)
-    b = constants.get("b", CURVED_DESCENT)
     plane = smith_lit_fraction(curved_elevation(mu, sigma, radius, k), effective_slope_variance(fractal))
     return plane * descent_factor(mu, sigma, radius, b)
 
@@ -121,20 +118,20 @@ def calibrate(points: int = 3000) -> tuple[float, float, float, float]:
     """Fit (k, b) over CALIBRATION; returns (k, b, RMS of the model, RMS of plane Smith), both with bias."""
     from scipy.optimize import least_squares
 
-    cases = []
+    cases, casts = [], []
     for octaves, amplitude, frequency, radius in CALIBRATION:
         fractal = Fractal(octaves=octaves, amplitude=amplitude, frequency=frequency, gain=0.5)
         bias = plane_bias(fractal, points=points)
         for mu in CALIBRATION_SLOPES:
-            cases.append((fractal, radius, mu, bias, lit_fraction(fractal, radius, mu, points)))
+            cases.append((fractal, radius, mu, bias))
+            casts.append(lit_fraction(fractal, radius, mu, points))
 
     def residuals(p):
-        model = [bias * curved_lit_fraction(mu, f, r, k=p[0], b=p[1])[0] for f, r, mu, bias, _ in cases]
-        return np.array(model) - [case[4] for case in cases]
+        return [bias * curved_lit_fraction(mu, f, r, *p)[0] for f, r, mu, bias in cases] - np.array(casts)
 
     fit = least_squares(residuals, [0.3, 0.3], bounds=([1e-3, 1e-3], [10.0, 10.0]))
-    plane = [b * smith_lit_fraction(mu, effective_slope_variance(f))[0] - cast for f, _, mu, b, cast in cases]
-    rms, rms_plane = np.sqrt(np.mean(fit.fun**2)), np.sqrt(np.mean(np.square(plane)))
+    plane = [bias * smith_lit_fraction(mu, effective_slope_variance(f))[0] for f, _, mu, bias in cases]
+    rms, rms_plane = np.sqrt(np.mean(fit.fun**2)), np.sqrt(np.mean((np.array(plane) - casts) ** 2))
     return float(fit.x[0]), float(fit.x[1]), float(rms), float(rms_plane)
 
 
