@@ -158,31 +158,37 @@ def test_glsl_linear_part_matches_numpy(target):
     np.testing.assert_allclose(got[:, 3], residual, rtol=1e-4)
 
 
-def test_a_sample_split_leaves_octaves_under_its_weight_floor_wholly_to_the_statistics():
-    """ms_setWeightsAbove (surface-filter's shading samples, MS_SAMPLE_WEIGHT_FLOOR): an octave whose weight
-    β₁ for the footprint is below the floor gets weight 0, and its whole variance (height and slope) goes
-    to the statistics; the others keep β₁. The samples' loops run to ms_weightedHeightOctaves. Against the
-    NumPy twins of the fractal and of the split's fits, with a footprint that keeps some octaves above the
-    floor and some below."""
-    dpdx, dpdy = np.array([0.09, 0.0, 0.03]), np.array([0.0, 0.0, 0.05])  # 0.2-2.1 cells of the octaves
+def test_a_sample_split_leaves_small_octaves_under_its_weight_floor_wholly_to_the_statistics():
+    """ms_setWeightsAbove (surface-filter's shading samples, MS_SAMPLE_WEIGHT_FLOOR and
+    MS_SAMPLE_VARIANCE_FLOOR): an octave whose weight β₁ for the footprint is below the floor, and whose
+    kept variance β₁²a² is below the share of the first octave's a₀², gets weight 0, and its whole variance
+    (height and slope) goes to the statistics; the others keep β₁, also a large octave under the weight
+    floor. The samples' loops run to ms_weightedHeightOctaves. Against the NumPy twins of the fractal and of
+    the split's fits, with a footprint that keeps one octave above the floor, one under it by its variance,
+    and drops one. The octave kept by its variance keeps its height, but its slopes shade through the
+    statistics (ms_shadingSlopeVariance)."""
+    dpdx, dpdy = np.array([0.18, 0.0, 0.06]), np.array([0.0, 0.0, 0.1])  # 0.4-4.2 cells of the octaves
     x, y = ", ".join(map(str, dpdx)), ", ".join(map(str, dpdy))
-    floor = 0.5
+    floor, share = 0.5, 0.01
     p, got = _eval_on_the_plane(
-        f"ms_setWeightsAbove(vec3({x}), vec3({y}), false, {floor});"
+        f"ms_setWeightsAbove(vec3({x}), vec3({y}), false, {floor}, {share});"
         " vec3 linear, shading;"
         " vec4 fg = ms_fractalGradLinear(p, 0, ms_weightedHeightOctaves, linear, shading);"
         " return vec4(fg.w, ms_heightVariance, ms_shadingSlopeVariance, float(ms_weightedHeightOctaves));",
         "gl330",
     )
-    f = FRACTAL.frequencies
+    f, a = FRACTAL.frequencies, FRACTAL.amplitudes
     rho1 = f * np.linalg.norm(LATTICE_FROM_OBJECT @ dpdx)
     rho2 = f * np.linalg.norm(LATTICE_FROM_OBJECT @ dpdy)
     beta1 = mean_fraction(rho1, rho2)
-    kept = np.where(beta1 >= floor, beta1, 0.0)
-    assert kept[0] > 0 and kept[-1] == 0  # both sides of the floor are exercised
+    large = beta1**2 * a**2 >= share * a[0] ** 2
+    kept = np.where((beta1 >= floor) | large, beta1, 0.0)
+    assert beta1[0] >= floor and (large & (beta1 < floor)).any()  # kept by its weight, and by its variance
+    assert kept[-1] == 0  # and dropped
     np.testing.assert_allclose(got[:, 0], FRACTAL.value(p, kept), atol=3e-5)
     np.testing.assert_allclose(got[:, 1], FRACTAL.variance(1.0 - kept**2), rtol=1e-4)
-    np.testing.assert_allclose(got[:, 2], FRACTAL.slope_variance(1.0 - kept**2), rtol=1e-4)
+    shading = np.where(beta1 >= floor, beta1, 0.0)
+    np.testing.assert_allclose(got[:, 2], FRACTAL.slope_variance(1.0 - shading**2), rtol=1e-4)
     assert (got[:, 3] == np.nonzero(kept)[0].max() + 1).all()
 
 

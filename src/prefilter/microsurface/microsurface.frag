@@ -114,6 +114,22 @@ const vec2 MS_TRIANGLE_OFFSETS[3] = vec2[3](vec2(1.0, 0.0), vec2(-0.5, -0.866025
 #define MS_SAMPLE_WEIGHT_FLOOR 0.5
 #endif
 #endif
+// ... unless the octave is large: one whose kept variance w²a² is at least MS_SAMPLE_VARIANCE_FLOOR of the
+// first octave's a₀² keeps its height with the samples, whatever its weight (its slopes still go to the
+// statistics: heightfield.glsl). Far away the first octaves are the ones under the weight floor, and without
+// them the samples of a pixel all saw the same statistics: the height sphere at 24 units came out smooth
+// where the reference's pixel means vary with the few cells of the first octave that each pixel spans
+// (luminance less its 5 x 5 mean, standard deviation where n·l > 0.4: reference 0.038, surface-filter
+// 0.002 -> 0.028). Measured (2026-12-07; 256 px, 64-spp references, surface-filter FLIP, the weight floor
+// alone -> with this): micro-heights-sphere at 24 units 0.0552 -> 0.0518, at 15.9 0.0527 -> 0.0502, at 10
+// 0.0527 -> 0.0507, at 6 0.0510 -> 0.0502, at the preset's 4.24 0.0503 -> 0.0502, at 2.4 the same;
+// micro-snake-sphere at 24 units 0.0589 -> 0.0585, at 10 0.0613 -> 0.0616, at its own distance the same;
+// the terrains within 0.0001 (their fine octaves are small beside their first); time the same (round-robin,
+// 7 rounds: height sphere 1.531 -> 1.529, snake 1.451 -> 1.455). With the rescued octaves' slopes kept too,
+// a floor of 0.003 cost the height sphere 0.02 x naive's frame, and 0.03 raised its FLIP to 0.0508.
+#ifndef MS_SAMPLE_VARIANCE_FLOOR
+#define MS_SAMPLE_VARIANCE_FLOOR 0.01
+#endif
 
 in vec3 v_solid;  // object-space position on the macro surface
 
@@ -641,7 +657,7 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     vec3 placementNormal = normalize(frame * vec3(-placementSlope, 1.0));
     MsSplit marched = ms_saveSplit();
     vec3 boxX = sub.x * gridX, boxY = sub.y * gridY;  // a sample's footprint
-    ms_setWeightsAbove(boxX, boxY, false, MS_SAMPLE_WEIGHT_FLOOR);
+    ms_setWeightsAbove(boxX, boxY, false, MS_SAMPLE_WEIGHT_FLOOR, MS_SAMPLE_VARIANCE_FLOOR);
 #else
     float qHeight = ms_surfaceHeight(p);
     vec3 boxX = dpdx, boxY = dpdy;
