@@ -129,6 +129,8 @@ class MicrosurfaceMaterial:
             defines["MS_MACRO_FOOTPRINT"] = True
         if self.transfer is not None:
             defines["MS_TRANSFER"] = True
+            if self._driver_colour():
+                defines["MS_DRIVER_COLOUR"] = True
         defines["MS_GRID_X"], defines["MS_GRID_Y"] = SHADING_GRIDS[self.shading_samples]
         if self.shading_samples == 3:
             defines["MS_TRIANGLE"] = True
@@ -141,6 +143,17 @@ class MicrosurfaceMaterial:
         if self.environment is not None:
             defines["MS_IRRADIANCE"] = True
         return defines
+
+    def _driver_colour(self) -> bool:
+        """surface-filter reads the height colour of a transfer function over its driver (driver_colour.py);
+        not with a perturbation C(h + ρ r), which moves h, not f."""
+        height = self.maps.get("height")
+        return (
+            self.transfer is not None
+            and height is not None
+            and not height.is_constant()
+            and self.perturb == 0
+        )
 
     def upload(self, ctx: moderngl.Context, mesh) -> dict:
         from prefilter.microsurface.height_filtering import height_filtering_table
@@ -181,6 +194,22 @@ class MicrosurfaceMaterial:
             v = np.linspace(*pre.mu_range, 4097)
             heights = self.transfer_scale * self.transfer.g(v)  # the relief's range, 0 included
             uniforms["u_transferHeights"] = (min(float(heights.min()), 0.0), max(float(heights.max()), 0.0))
+            if self._driver_colour():
+                from prefilter.microsurface.driver_colour import preconvolve_driver_colour
+
+                cmap = self.maps["height"]
+                pre, driver_map = preconvolve_driver_colour(
+                    cmap.table.premultiplied(),
+                    cmap.scale,
+                    cmap.offset,
+                    self.transfer,
+                    self.transfer_scale,
+                    float(np.sqrt(self.height.variance())),
+                )
+                textures["u_driverColour"] = pre.upload(ctx)
+                owned.append(textures["u_driverColour"])
+                uniforms["u_driverMap"] = driver_map
+                uniforms["u_driverRange"] = (*pre.mu_range, pre.sigma_max)
             uniforms["u_transferSlopes"] = (
                 self.transfer_scale * float(np.max(np.abs(self.transfer.g_prime(v)))),
                 self.transfer_scale * self.transfer.slope_gain(np.sqrt(self.height.variance())),
