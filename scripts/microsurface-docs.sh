@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Regenerate the figures of docs/microsurface.md: `prefilter compare` on the microsurface presets
 # (256 px, SPP samples, default 64: every reference pass ray-marches the explicit microgeometry), the
-# march-steps diagnostic, the sphere across scales (scripts/microsurface-scales.py), and the plots that
+# march-steps diagnostic, the height sphere and the sponge across scales (scripts/microsurface-scales.py), and the plots that
 # `prefilter bench` writes (zoom sweep, Gaussian-approximation error) copied from out/bench if they exist.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -17,6 +17,7 @@ for preset in micro-heights-terrain micro-heights-grazing micro-heights-sphere m
 done
 .venv/bin/prefilter render micro-heights-sphere --mode march-steps --size 256x256 -o docs/images/microsurface/march-steps.png
 .venv/bin/python scripts/microsurface-scales.py docs/images/microsurface/across-scales.png "$SPP"
+.venv/bin/python scripts/microsurface-scales.py docs/images/microsurface/sponge-across-scales.png "$SPP" micro-sponge-sphere
 for plot in microsurface-zoom.png gaussian-approximation-error.png; do
   if [ -f "out/bench/$plot" ]; then cp "out/bench/$plot" docs/images/microsurface/; fi
 done

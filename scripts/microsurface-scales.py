@@ -1,12 +1,13 @@
-"""The height-coloured sphere across scales (Heitz et al. 2014 Figs. 1, 16) for docs/microsurface.md.
+"""A microsurface sphere across scales (Heitz et al. 2014 Figs. 1, 16) for docs/microsurface.md.
 
 The camera moves along its view ray as in the bench's zoom study (1.35 to 24 units from the centre). Each
 column is one distance: the ray-marched reference, `surface-filter` and `naive`, labelled with their FLIP
 against the reference. Far away the sphere covers few pixels, so every panel is cropped to the sphere and
 enlarged with nearest-neighbour sampling: what is shown is the pixels themselves.
 
-Usage: .venv/bin/python scripts/microsurface-scales.py [OUT.png] [SPP]
-(default docs/images/microsurface/across-scales.png, 64 spp; about 5 minutes on llvmpipe)
+Usage: .venv/bin/python scripts/microsurface-scales.py [OUT.png] [SPP] [PRESET]
+(default docs/images/microsurface/across-scales.png, 64 spp, micro-heights-sphere; about 5 minutes on
+llvmpipe)
 """
 
 import sys
@@ -20,8 +21,7 @@ from prefilter.images import labelled_strip, write_image
 from prefilter.metrics import compare
 from prefilter.scene import resolve_scene
 
-PRESET = "micro-heights-sphere"
-DISTANCES = (1.35, 2.4, 4.24, 10.0, 24.0)  # 4.24: the preset's own camera
+DISTANCES = (1.35, 2.4, 4.24, 10.0, 24.0)  # 4.24: the height sphere's own camera
 SIZE = 256
 PANEL = 192
 MODES = ("surface-filter", "naive")
@@ -46,7 +46,7 @@ def crop_to_object(image: np.ndarray, alpha: np.ndarray) -> np.ndarray:
 def main() -> None:
     out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("docs/images/microsurface/across-scales.png")
     spp = int(sys.argv[2]) if len(sys.argv) > 2 else 64
-    scene = resolve_scene(PRESET)
+    scene = resolve_scene(sys.argv[3] if len(sys.argv) > 3 else "micro-heights-sphere")
     camera = scene.camera
     axis = (camera.eye - camera.target) / np.linalg.norm(camera.eye - camera.target)
     rows = {name: [] for name in ("reference", *MODES)}
