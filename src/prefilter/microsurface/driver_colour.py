@@ -6,7 +6,8 @@ and filter the height colour C(h) over D_h of that Gaussian. The moss's and spon
 of that Gaussian misses the colour of the heights: for the sponge's driver N(0, 0.28²) the mean colour is
 (0.52, 0.30, 0.065) and the Gaussian's (0.48, 0.24, 0.049), green 20 % low.
 
-But g is monotonic, so a height's rank among the heights is its driver's rank among the drivers:
+But g is increasing (g′ > 0 for every transfer function of transfer.py), so a height's rank among the
+heights is its driver's rank among the drivers:
 P_h(g(f)) = Φ((f − f̄)/σ_f). Smith's visibility V(h) = P_h(h)^Λ (eq. 2) holds for any height distribution,
 so the heights that are seen and lit are g of the drivers that are seen and lit, and those are distributed
 as D_h of the Gaussian driver: N(f̄ + μ_d(Λ) σ_f, σ_d(Λ)² σ_f²) with the μ_d, σ_d of §5.1 (the tables of
@@ -14,7 +15,8 @@ height_filtering.py; the coarse-and-micro split as for Gaussian reliefs, in driv
 slopes of h, keeps §7's moments. The colour is then the composite K(f) = C(a · s · g(f) + b) (a, b the
 height colour's scale and offset, s the transfer's scale) averaged over that Gaussian: a colour map over
 the driver, preconvolved as any other (colormap/gaussian.py), read once (microsurface.frag,
-ms_driverColour).
+ms_heightColour with MS_DRIVER_COLOUR). Measured there: far away the sponge's FLIP goes 0.214 -> 0.147
+(24 units), the moss's 0.111 -> 0.096; at the presets' distances nothing changes.
 
 K is sampled into a clamp colour table over f in [−L, L], L = DRIVER_SPAN driver deviations of the whole
 fractal (K is constant beyond: the flat ground or top on one side, the tallest tufts or deepest pits on the

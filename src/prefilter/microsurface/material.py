@@ -198,7 +198,7 @@ class MicrosurfaceMaterial:
                 from prefilter.microsurface.driver_colour import preconvolve_driver_colour
 
                 cmap = self.maps["height"]
-                pre, driver_map = preconvolve_driver_colour(
+                driver, driver_map = preconvolve_driver_colour(
                     cmap.table.premultiplied(),
                     cmap.scale,
                     cmap.offset,
@@ -206,10 +206,10 @@ class MicrosurfaceMaterial:
                     self.transfer_scale,
                     float(np.sqrt(self.height.variance())),
                 )
-                textures["u_driverColour"] = pre.upload(ctx)
+                textures["u_driverColour"] = driver.upload(ctx)
                 owned.append(textures["u_driverColour"])
                 uniforms["u_driverMap"] = driver_map
-                uniforms["u_driverRange"] = (*pre.mu_range, pre.sigma_max)
+                uniforms["u_driverRange"] = (*driver.mu_range, driver.sigma_max)
             uniforms["u_transferSlopes"] = (
                 self.transfer_scale * float(np.max(np.abs(self.transfer.g_prime(v)))),
                 self.transfer_scale * self.transfer.slope_gain(np.sqrt(self.height.variance())),
