@@ -18,6 +18,6 @@ done
 .venv/bin/prefilter render micro-heights-sphere --mode march-steps --size 256x256 -o docs/images/microsurface/march-steps.png
 .venv/bin/python scripts/microsurface-scales.py docs/images/microsurface/across-scales.png "$SPP"
 .venv/bin/python scripts/microsurface-scales.py docs/images/microsurface/sponge-across-scales.png "$SPP" micro-sponge-sphere
-for plot in microsurface-zoom.png gaussian-approximation-error.png; do
+for plot in microsurface-zoom.png microsurface-zoom-sponge.png gaussian-approximation-error.png; do
   if [ -f "out/bench/$plot" ]; then cp "out/bench/$plot" docs/images/microsurface/; fi
 done

@@ -51,7 +51,12 @@ STUDY_SPP = 64  # the microsurface studies (zoom, log fit) render many reference
 # surface-filter's shading samples traded for time on every microsurface preset (samples_study): these
 # besides the preset's own setting, whose FLIP is the main table's
 SAMPLES_STUDY = (1, 2, 3, 4)
-ZOOM_PRESET = "micro-heights-sphere"
+# the zoom studies: preset -> (the JSON's study key, the plot's file name); a Gaussian relief and a transfer
+# function's
+ZOOM_PRESETS = {
+    "micro-heights-sphere": ("zoom", "microsurface-zoom.png"),
+    "micro-sponge-sphere": ("zoom_sponge", "microsurface-zoom-sponge.png"),
+}
 FIT_PRESET = "micro-heights-terrain"
 # Fournier presets (issue #5): multilobe must beat the single-lobe baselines on those tagged so.
 FOURNIER_TAG = "fournier"
@@ -738,9 +743,10 @@ def run_bench(
     if DISTANCE_PRESET in names:
         plot = Path(plots) / "error-vs-distance.png" if plots else None
         studies["distance"] = distance_study(resolve_scene(DISTANCE_PRESET), size, min(spp, 256), plot)
-    if ZOOM_PRESET in names:
-        plot = Path(plots) / "microsurface-zoom.png" if plots else None
-        studies["zoom"] = zoom_study(resolve_scene(ZOOM_PRESET), size, spp, plot)
+    for zoom_preset, (key, plot_name) in ZOOM_PRESETS.items():
+        if zoom_preset in names:
+            plot = Path(plots) / plot_name if plots else None
+            studies[key] = zoom_study(resolve_scene(zoom_preset), size, spp, plot)
     if FIT_PRESET in names:
         studies["height_moments"] = log_fit_study(resolve_scene(FIT_PRESET), size, spp)
     if any(SURFACE_TAG in s.tags for s in scenes) and plots:
