@@ -1366,6 +1366,33 @@ def test_tall_relief_on_a_sphere_takes_light_from_below_the_macro_horizon(marche
     assert image[beyond].mean() < 1.05 * ref[beyond].mean(), (image[beyond].mean(), ref[beyond].mean())
 
 
+def _far_away_with_and_without(monkeypatch, preset, distance, size, edit_defines):
+    """`preset` with its camera moved to `distance` along its view ray: a 16-spp reference, its coverage,
+    surface-filter as it is, and surface-filter with the shader's defines passed through `edit_defines`
+    (a dict -> dict function), all composited on the background."""
+    from dataclasses import replace
+
+    from prefilter.gl.render import Renderer, composite
+    from prefilter.microsurface.material import MicrosurfaceMaterial
+    from prefilter.scene import resolve_scene
+
+    scene = resolve_scene(preset)
+    camera = scene.camera
+    axis = (camera.eye - camera.target) / np.linalg.norm(camera.eye - camera.target)
+    scene = replace(scene, camera=replace(camera, eye=camera.target + distance * axis))
+    reference, covered, images = _against_reference(scene, size, ["surface-filter"])
+    own_defines = MicrosurfaceMaterial.defines
+    monkeypatch.setattr(
+        MicrosurfaceMaterial, "defines", lambda self, options: edit_defines(own_defines(self, options))
+    )
+    renderer = Renderer(scene, size)
+    try:
+        variant = composite(renderer.render("surface-filter"), scene.background)
+    finally:
+        renderer.release()
+    return scene, reference, covered, images["surface-filter"], variant
+
+
 def test_the_far_height_sphere_keeps_the_texture_of_its_first_octave(monkeypatch):
     """Far away a pixel spans a couple of cells of the height sphere's first octave, and the reference's pixel
     means differ from pixel to pixel. A shading sample keeps an octave under its weight floor if what it
@@ -1373,32 +1400,14 @@ def test_the_far_height_sphere_keeps_the_texture_of_its_first_octave(monkeypatch
     the luminance less its 5 x 5 mean varies 4 times as much on the lit side as with the weight floor alone
     (measured 0.0185 against 0.0032; the reference 0.033 at 64 spp), and FLIP against the 16-spp reference
     is 5 % lower (0.0673 against 0.0722)."""
-    from dataclasses import replace
-
     from scipy.ndimage import binary_erosion, uniform_filter
 
-    from prefilter.gl.render import Renderer, composite
     from prefilter.metrics import compare
-    from prefilter.microsurface.material import MicrosurfaceMaterial
-    from prefilter.scene import resolve_scene
 
-    scene = resolve_scene("micro-heights-sphere")
-    camera = scene.camera
-    axis = (camera.eye - camera.target) / np.linalg.norm(camera.eye - camera.target)
-    scene = replace(scene, camera=replace(camera, eye=camera.target + 12.0 * axis))
     size = (128, 128)
-    reference, covered, images = _against_reference(scene, size, ["surface-filter"])
-    own_defines = MicrosurfaceMaterial.defines
-
-    def weight_floor_alone(self, options):
-        return {**own_defines(self, options), "MS_SAMPLE_VARIANCE_FLOOR": 1e9}
-
-    monkeypatch.setattr(MicrosurfaceMaterial, "defines", weight_floor_alone)
-    renderer = Renderer(scene, size)
-    try:
-        floor_alone = composite(renderer.render("surface-filter"), scene.background)
-    finally:
-        renderer.release()
+    scene, reference, covered, kept, alone = _far_away_with_and_without(
+        monkeypatch, "micro-heights-sphere", 12.0, size, lambda d: {**d, "MS_SAMPLE_VARIANCE_FLOOR": 1e9}
+    )
     lit = binary_erosion(covered, iterations=2) & (_macro_sphere_cosine(scene, size) > 0.4)
     assert lit.sum() > 50
 
@@ -1406,7 +1415,6 @@ def test_the_far_height_sphere_keeps_the_texture_of_its_first_octave(monkeypatch
         luminance = image[..., :3] @ np.array([0.2126, 0.7152, 0.0722])
         return (luminance - uniform_filter(luminance, 5))[lit].std()
 
-    kept, alone = images["surface-filter"], floor_alone
     assert texture(kept) > 4.0 * texture(alone), (texture(kept), texture(alone))
     flip_kept = compare(kept, reference, covered)["flip"]
     flip_alone = compare(alone, reference, covered)["flip"]
@@ -1456,29 +1464,14 @@ def test_the_far_sponge_keeps_the_hue_of_its_heights(monkeypatch):
     is within 5 % of the ray-marched reference's (16 spp; 2.8 % measured), and blue over red too (3.3 %);
     with the height colour read over §7's Gaussian of the heights they are 13 % and 18 % low (the sphere
     turns red-brown where the reference is ochre), which the test also checks."""
-    from dataclasses import replace
-
-    from prefilter.gl.render import Renderer, composite
-    from prefilter.microsurface.material import MicrosurfaceMaterial
-    from prefilter.scene import resolve_scene
-
-    scene = resolve_scene("micro-sponge-sphere")
-    camera = scene.camera
-    axis = (camera.eye - camera.target) / np.linalg.norm(camera.eye - camera.target)
-    scene = replace(scene, camera=replace(camera, eye=camera.target + 12.0 * axis))
     size = (128, 128)
-    reference, covered, images = _against_reference(scene, size, ["surface-filter"])
-    own_defines = MicrosurfaceMaterial.defines
-
-    def gaussian_heights(self, options):
-        return {k: v for k, v in own_defines(self, options).items() if k != "MS_DRIVER_COLOUR"}
-
-    monkeypatch.setattr(MicrosurfaceMaterial, "defines", gaussian_heights)
-    renderer = Renderer(scene, size)
-    try:
-        gaussian = composite(renderer.render("surface-filter"), scene.background)
-    finally:
-        renderer.release()
+    scene, reference, covered, driver, gaussian = _far_away_with_and_without(
+        monkeypatch,
+        "micro-sponge-sphere",
+        12.0,
+        size,
+        lambda d: {k: v for k, v in d.items() if k != "MS_DRIVER_COLOUR"},
+    )
     lit = covered & (_macro_sphere_cosine(scene, size) > 0.3)
     assert lit.sum() > 400
 
@@ -1487,10 +1480,7 @@ def test_the_far_sponge_keeps_the_hue_of_its_heights(monkeypatch):
         return np.array([green / red, blue / red])
 
     want = hue(reference)
-    assert np.all(np.abs(hue(images["surface-filter"]) / want - 1.0) < 0.05), (
-        hue(images["surface-filter"]),
-        want,
-    )
+    assert np.all(np.abs(hue(driver) / want - 1.0) < 0.05), (hue(driver), want)
     assert np.all(hue(gaussian) / want < 0.9), (hue(gaussian), want)
 
 
