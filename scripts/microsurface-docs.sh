@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Regenerate the figures of docs/microsurface.md: `prefilter compare` on the microsurface presets
 # (256 px, SPP samples, default 64: every reference pass ray-marches the explicit microgeometry), the
-# march-steps diagnostic, the height sphere and the sponge across scales (scripts/microsurface-scales.py), and the plots that
-# `prefilter bench` writes (zoom sweep, Gaussian-approximation error) copied from out/bench if they exist.
+# march-steps diagnostic, the height sphere and the sponge across scales (scripts/microsurface-scales.py),
+# and the plots that `prefilter bench` writes (zoom sweeps, Gaussian-approximation error) copied from
+# out/bench if they exist.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SPP="${SPP:-64}"

@@ -11,11 +11,11 @@ llvmpipe)
 """
 
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from prefilter.bench import zoomed
 from prefilter.gl.render import Renderer, composite
 from prefilter.images import labelled_strip, write_image
 from prefilter.metrics import compare
@@ -47,12 +47,9 @@ def main() -> None:
     out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("docs/images/microsurface/across-scales.png")
     spp = int(sys.argv[2]) if len(sys.argv) > 2 else 64
     scene = resolve_scene(sys.argv[3] if len(sys.argv) > 3 else "micro-heights-sphere")
-    camera = scene.camera
-    axis = (camera.eye - camera.target) / np.linalg.norm(camera.eye - camera.target)
     rows = {name: [] for name in ("reference", *MODES)}
     for distance in DISTANCES:
-        zoomed = replace(scene, camera=replace(camera, eye=camera.target + distance * axis))
-        renderer = Renderer(zoomed, (SIZE, SIZE))
+        renderer = Renderer(zoomed(scene, distance), (SIZE, SIZE))
         try:
             reference = renderer.reference(spp)
             mask = renderer.covered(reference, spp)

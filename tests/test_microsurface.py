@@ -1370,16 +1370,12 @@ def _far_away_with_and_without(monkeypatch, preset, distance, size, edit_defines
     """`preset` with its camera moved to `distance` along its view ray: a 16-spp reference, its coverage,
     surface-filter as it is, and surface-filter with the shader's defines passed through `edit_defines`
     (a dict -> dict function), all composited on the background."""
-    from dataclasses import replace
-
+    from prefilter.bench import zoomed
     from prefilter.gl.render import Renderer, composite
     from prefilter.microsurface.material import MicrosurfaceMaterial
     from prefilter.scene import resolve_scene
 
-    scene = resolve_scene(preset)
-    camera = scene.camera
-    axis = (camera.eye - camera.target) / np.linalg.norm(camera.eye - camera.target)
-    scene = replace(scene, camera=replace(camera, eye=camera.target + distance * axis))
+    scene = zoomed(resolve_scene(preset), distance)
     reference, covered, images = _against_reference(scene, size, ["surface-filter"])
     own_defines = MicrosurfaceMaterial.defines
     monkeypatch.setattr(

@@ -529,19 +529,23 @@ def distance_study(scene: Scene, size, spp: int, plot_path: Path | None, count: 
     return {"rows": rows, "plot": str(plot_path) if plot_path else None}
 
 
+def zoomed(scene: Scene, distance: float) -> Scene:
+    """`scene` with its camera moved along its view ray to `distance` from the target (the zoom study's)."""
+    camera = scene.camera
+    axis = (camera.eye - camera.target) / np.linalg.norm(camera.eye - camera.target)
+    return replace(scene, camera=replace(camera, eye=camera.target + distance * axis))
+
+
 def zoom_study(scene: Scene, size, spp: int, plot_path: Path | None, count: int = 8) -> dict:
     """Heitz et al. Figs. 1, 16: the camera moves along its view ray from close up (the microgeometry spans
     many pixels) to far (it is far below a pixel); FLIP of every mode against the reference at each distance.
     The filtered model must follow the reference without a jump where octaves pass from geometry to
     statistics."""
     size, spp = surface_size(scene, size), min(spp, STUDY_SPP)
-    camera = scene.camera
-    axis = (camera.eye - camera.target) / np.linalg.norm(camera.eye - camera.target)
     modes = scene_modes(scene)
     rows, uncovered = [], []
     for distance in np.geomspace(1.35, 24.0, count):
-        zoomed = replace(scene, camera=replace(camera, eye=camera.target + distance * axis))
-        renderer = Renderer(zoomed, size)
+        renderer = Renderer(zoomed(scene, distance), size)
         try:
             ref = renderer.reference(spp)
             mask = renderer.covered(ref, spp)

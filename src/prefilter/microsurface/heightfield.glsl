@@ -153,6 +153,7 @@ void ms_setWeightsAbove(vec3 dpdx, vec3 dpdy, bool full, float floorWeight, floa
     float footprint2 = dot(lx, lx) + dot(ly, ly);  // ρ1² + ρ2² in lattice units of frequency 1
     ms_weightedHeightOctaves = 0;
     ms_weightedTextureOctaves = 0;
+    float heightFirst = ms_octave[0].x, textureFirst = ms_octave[MS_MAX_OCTAVES].x;  // a₀ of each fractal
     for (int i = 0; i < MS_WEIGHT_SLOTS; ++i) {
         bool height = i < MS_MAX_OCTAVES;
         int k = height ? i : i - MS_MAX_OCTAVES;
@@ -165,7 +166,7 @@ void ms_setWeightsAbove(vec3 dpdx, vec3 dpdy, bool full, float floorWeight, floa
         vec2 af = ms_octave[i];
         vec3 fractions = ms_splitFractions(af.y * lx, af.y * ly);  // (β, β₁, γ), one evaluation
         float w = full ? 1.0 : ms_meanFraction(fractions);
-        float first = ms_octave[height ? 0 : MS_MAX_OCTAVES].x;  // a₀ of the octave's fractal
+        float first = height ? heightFirst : textureFirst;
         if (w < floorWeight && w * w * af.x * af.x < floorShare * first * first) w = 0.0;
         if (w > 0.0) {
             if (height) ms_weightedHeightOctaves = k + 1;

@@ -321,9 +321,9 @@ struct MsMasking {
     float sigmaC;
     float microVariance;  // the height variance beyond the coarse surface (the samples' and the unresolved)
 #ifdef MS_DRIVER_COLOUR
-    float sigmaFT;      // the driver's deviations, whole and coarse, and its variance beyond the coarse surface
+    float sigmaFT;      // the driver's deviations, whole and coarse
     float sigmaFC;
-    float driverMicroVariance;
+    float driverUnresolved;  // the share of the driver's variance beyond the coarse surface that no sample shows
 #endif
     float lambdaOT;     // Λ(ω_o), whole and coarse
     float lambdaOC;
@@ -351,9 +351,10 @@ MsMasking ms_masking(vec3 wo, MsSurface s, MsFootprint f) {
 #ifdef MS_DRIVER_COLOUR
     // the driver's split as the heights' above, in driver units: the coarse (marched) variance, and beyond it
     // the sample's unresolved part (ms_transferSigma of the current split) and what the samples resolve
-    m.driverMicroVariance = ms_transferSigma * ms_transferSigma + f.sampledHeightVariance;
+    float driverMicroVariance = ms_transferSigma * ms_transferSigma + f.sampledHeightVariance;
+    m.driverUnresolved = ms_transferSigma * ms_transferSigma / max(driverMicroVariance, 1e-30);
     m.sigmaFC = sqrt(f.marchedVariance);
-    m.sigmaFT = sqrt(m.driverMicroVariance + f.marchedVariance);
+    m.sigmaFT = sqrt(driverMicroVariance + f.marchedVariance);
     m.viewHeights = ms_microHeights(m.lambdaOT, m.lambdaOC, m.sigmaFT, m.sigmaFC);
 #elif defined(MS_HEIGHT_MAP)
     m.viewHeights = ms_microHeights(m.lambdaOT, m.lambdaOC, m.sigmaT, m.sigmaC);
@@ -389,9 +390,8 @@ vec4 ms_heightColour(MsSurface s, MsMasking m, vec2 heights, vec3 boxX, vec3 box
     // σ_∇f |o_xy| (a second table of K g'), fixed the rim (8 units 0.1045) but took the far sphere back
     // (24 units 0.1739; the moss at 14 units 0.1079), and the light's cosine weighted alike (a third
     // table) further (0.1970): not kept (docs/microsurface-history.md).
-    float unresolved = ms_transferSigma * ms_transferSigma / max(m.driverMicroVariance, 1e-30);
     return cm_gaussian(u_driverColour, u_driverMap.x * (s.driver + heights.x) + u_driverMap.y,
-                       abs(u_driverMap.x) * sqrt(heights.y * unresolved), CM_CLAMP, u_driverRange);
+                       abs(u_driverMap.x) * sqrt(heights.y * m.driverUnresolved), CM_CLAMP, u_driverRange);
 #else
     float seen = heights.y / max(m.microVariance, 1e-30);
     vec2 g = abs(vec2(dot(s.linear, boxX), dot(s.linear, boxY))) * sqrt(seen);
