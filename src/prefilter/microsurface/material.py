@@ -131,6 +131,7 @@ class MicrosurfaceMaterial:
             defines["MS_TRANSFER"] = True
             if self._driver_colour():
                 defines["MS_DRIVER_COLOUR"] = True
+                defines["MS_DRIVER_NODES"] = True
         defines["MS_GRID_X"], defines["MS_GRID_Y"] = SHADING_GRIDS[self.shading_samples]
         if self.shading_samples == 3:
             defines["MS_TRIANGLE"] = True
@@ -210,6 +211,19 @@ class MicrosurfaceMaterial:
                 owned.append(textures["u_driverColour"])
                 uniforms["u_driverMap"] = driver_map
                 uniforms["u_driverRange"] = (*driver.mu_range, driver.sigma_max)
+                from prefilter.microsurface.driver_colour import preconvolve_driver_slopes
+
+                first, unit = preconvolve_driver_slopes(
+                    cmap.table.premultiplied(),
+                    cmap.scale,
+                    cmap.offset,
+                    self.transfer,
+                    self.transfer_scale,
+                    float(np.sqrt(self.height.variance())),
+                )
+                textures["u_driverSlopeColour"] = first.upload(ctx)
+                owned.append(textures["u_driverSlopeColour"])
+                uniforms["u_driverSlopeUnit"] = unit
             uniforms["u_transferSlopes"] = (
                 self.transfer_scale * float(np.max(np.abs(self.transfer.g_prime(v)))),
                 self.transfer_scale * self.transfer.slope_gain(np.sqrt(self.height.variance())),

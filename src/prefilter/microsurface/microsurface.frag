@@ -163,10 +163,17 @@ uniform int u_slopeOver;
 uniform vec4 u_heightConstant;
 uniform vec4 u_slopeConstant;
 uniform vec4 u_textureConstant;
+#if defined(MS_DRIVER_NODES) && !defined(MS_DRIVER_COLOUR)
+#undef MS_DRIVER_NODES  // the nodes read their colours over the driver
+#endif
 #ifdef MS_DRIVER_COLOUR
 uniform sampler2D u_driverColour;  // @table surface-filter's height colour under a transfer function h = s g(f), read over the driver f (driver_colour.py): the composite K(f) = C_h(u_heightMap.x s g(f) + u_heightMap.y) (the scene's u_heightMap, baked in) preconvolved as u_heightGaussian is, clamp layout with u_driverRange = (mu_lo, mu_hi, sigma_max); u: μ = u_driverMap.x f + u_driverMap.y, read at (μ - mu_lo)/(mu_hi - mu_lo) (CLAMP_TO_EDGE); v: σ = |u_driverMap.x| x the standard deviation of the driver, row j at σ = sigma_max j/(height - 1) (read at v = (σ/sigma_max (height - 1) + 0.5)/height); RGBA: linear RGB premultiplied by alpha, and alpha; LINEAR, no MIP
 uniform vec2 u_driverMap;
 uniform vec3 u_driverRange;
+#ifdef MS_DRIVER_NODES
+uniform sampler2D u_driverSlopeColour;  // @table the transfer function's slope gain over the driver (driver_colour.py, driver_slope_table): (K(f).rgb q(f), q(f)) with q = g'(f)/G, G = max g' over the table, preconvolved and read as u_driverColour; RGBA: K premultiplied as in u_driverColour; LINEAR, no MIP; not colours in alpha
+uniform float u_driverSlopeUnit;        // u_transferScale G: q's unit in dh/df
+#endif
 #endif
 uniform sampler2D u_heightFilteringTable;  // @table the moments of D_h (Heitz et al. 2014 eqs. 14-17): one row of n = width texels, texel i at t = i/(n - 1) with t = log(1 + L)/log(1 + 10000) (MS_HF_LMAX), L = Λ_o + Λ_i (Smith), read LINEAR at u = (t (n - 1) + 0.5)/n (CLAMP_TO_EDGE: L > 10000 reads the last texel); RG: (μ_d/σ_h, σ_d/σ_h), the mean and standard deviation of the heights that are seen and lit, in units of the height deviation σ_h; no MIP; not colours
 
@@ -362,6 +369,59 @@ MsMasking ms_masking(vec3 wo, MsSurface s, MsFootprint f) {
     return m;
 }
 
+#ifdef MS_DRIVER_COLOUR
+// D_h (shift, variance) `heights` of the driver, about the sample's coarse driver and scaled to the part of
+// the variance that no sample resolves, as a read of the tables over the driver: (μ, σ) in their units.
+vec2 ms_driverAt(MsSurface s, MsMasking m, vec2 heights) {
+    return vec2(u_driverMap.x * (s.driver + heights.x) + u_driverMap.y,
+                abs(u_driverMap.x) * sqrt(heights.y * m.driverUnresolved));
+}
+#endif
+
+#ifdef MS_DRIVER_NODES
+// The slopes of h = s g(f) at a shading sample as two nodes of the slope gain g' (beyond the paper; the
+// header of driver_colour.py derives it). ∇h = g'(f) ∇f: for one driver value the slopes are Gaussian, g'
+// times the driver's, but over the driver they are a mixture (the sponge: a flat top, g' = 0, and steep
+// walls), and §7's one Gaussian of their whole covariance shades them as if every facet had the average
+// slope spread. The nodes g'± = E[g'] ± sd(g') of the sample's driver N(f_c, σ_f) (its transfer moments)
+// keep E[g'] and E[g'²]; node ± has the slopes N(g'± ∇f̄, g'±² Σ_∇f) (∇f̄ the coarse driver's gradient, Σ_∇f
+// the unresolved driver's covariance), its own visible slopes D_s and projected area towards the eye, and
+// the colour K± = K̄ ± Cov(K, g')/sd(g') (K the height colour over the driver, read over the view's D_h), so
+// the flat top's colour goes with the flat top's share of the view and of the light.
+struct MsNodes {
+    vec2 meanUp, meanDown;  // D_s of node + and node −
+    vec3 covUp, covDown;
+    float share;       // node +'s share of the visible area
+    float area;        // the sample's projected area towards the eye, the nodes' mean
+    vec4 slopeColour;  // (E[K g'] rgb, E[g']) over the view's D_h
+    float spread;      // sd(g')
+};
+
+MsNodes ms_driverNodes(vec3 wo, MsSurface s, MsMasking m, float lean) {
+    vec2 at = ms_driverAt(s, m, m.viewHeights);
+    MsNodes nodes;
+    nodes.slopeColour = u_driverSlopeUnit * cm_gaussian(u_driverSlopeColour, at.x, at.y, CM_CLAMP, u_driverRange);
+    vec2 gain = s.transferMoments.zw;  // E[h'], E[h'²]
+    nodes.spread = sqrt(max(gain.y - gain.x * gain.x, 0.0));
+    float up = gain.x + nodes.spread, down = gain.x - nodes.spread;
+    vec2 gradient = s.slope / max(gain.x, 1e-30);  // ∇f̄ (s.slope = E[h'] ∇f̄)
+    vec3 cov = ms_slopeVariance * vec3(1.0, 0.0, 1.0);
+    float areaUp = ms_visibleSlopes(wo, up * gradient, up * up * cov, nodes.meanUp, nodes.covUp);
+    float areaDown = ms_visibleSlopes(wo, max(down, 0.0) * gradient, down * down * cov, nodes.meanDown, nodes.covDown);
+    nodes.meanUp += lean * (nodes.meanUp - up * gradient);
+    nodes.meanDown += lean * (nodes.meanDown - max(down, 0.0) * gradient);
+    nodes.share = areaUp / max(areaUp + areaDown, 1e-30);
+    nodes.area = 0.5 * (areaUp + areaDown);
+    return nodes;
+}
+
+// Cov(K, g')/sd(g') for the colour K̄ read over the same D_h: K± = K̄ ± this
+vec4 ms_nodeColourShift(MsNodes nodes, vec4 colour) {
+    vec3 covariance = nodes.slopeColour.rgb - colour.rgb * nodes.slopeColour.a;
+    return vec4(nodes.spread > 1e-6 ? covariance / nodes.spread : vec3(0.0), 0.0);
+}
+#endif
+
 #ifdef MS_HEIGHT_MAP
 // A shading sample's height colour C̄_h (§5.1) for D_h's (shift, variance) `heights` under masking m. Over
 // the sample's footprint (axes boxX, boxY) the octaves it resolves spread its heights by their linear part
@@ -390,8 +450,8 @@ vec4 ms_heightColour(MsSurface s, MsMasking m, vec2 heights, vec3 boxX, vec3 box
     // σ_∇f |o_xy| (a second table of K g'), fixed the rim (8 units 0.1045) but took the far sphere back
     // (24 units 0.1739; the moss at 14 units 0.1079), and the light's cosine weighted alike (a third
     // table) further (0.1970): not kept (docs/microsurface-history.md).
-    return cm_gaussian(u_driverColour, u_driverMap.x * (s.driver + heights.x) + u_driverMap.y,
-                       abs(u_driverMap.x) * sqrt(heights.y * m.driverUnresolved), CM_CLAMP, u_driverRange);
+    vec2 at = ms_driverAt(s, m, heights);
+    return cm_gaussian(u_driverColour, at.x, at.y, CM_CLAMP, u_driverRange);
 #else
     float seen = heights.y / max(m.microVariance, 1e-30);
     vec2 g = abs(vec2(dot(s.linear, boxX), dot(s.linear, boxY))) * sqrt(seen);
@@ -783,7 +843,9 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
 #endif
         vec2 visMean;
         vec3 visCov;
+#ifndef MS_DRIVER_NODES
         float area = ms_visibleSlopes(wo, s.slope, s.slopeCov, visMean, visCov);  // and the sample's share, below
+#endif
         // The fBm's visible slopes lean further towards the eye than D_s (Smith's) says: on it a fine facet on
         // the far side of a coarse hill is masked by the hill more often. Ray cast, D_s's shift is short by
         // 10 % at grazing views and right at 40° elevation (fractal_masking.py, slope_lean: its constants).
@@ -791,7 +853,17 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
         // of the height variance that the statistics carry (1 far away).
         float statisticalShare = ms_heightVariance / max(ms_heightVariance + ms_coarseHeightVariance, 1e-30);
         float lean = statisticalShare * MS_SLOPE_LEAN * max(1.0 - wo.z / MS_SLOPE_LEAN_FADE, 0.0);
+#ifdef MS_DRIVER_NODES
+        MsNodes nodes = ms_driverNodes(wo, s, m, lean);
+        float area = nodes.area;
+        // D_s of the whole: the nodes' mixture
+        visMean = mix(nodes.meanDown, nodes.meanUp, nodes.share);
+        vec2 apart = nodes.meanUp - nodes.meanDown;
+        visCov = mix(nodes.covDown, nodes.covUp, nodes.share)
+               + nodes.share * (1.0 - nodes.share) * vec3(apart.x * apart.x, apart.x * apart.y, apart.y * apart.y);
+#else
         visMean += lean * (visMean - s.slope);
+#endif
 #ifdef MS_TEXTURE_MAP
         c0 = ms_mapGaussian(u_textureGaussian, u_textureMap, s.r, textureVariance, u_textureWrap, u_textureRange);
 #endif
@@ -804,6 +876,10 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
         // The view alone (ambient, environment light): Λ_i = 0, V̄ = 1.
 #ifdef MS_HEIGHT_MAP
         ch = ms_heightColour(s, m, m.viewHeights, boxX, boxY, perturbVariance);
+#endif
+#ifdef MS_DRIVER_NODES
+        vec4 colourShift = ms_nodeColourShift(nodes, ch);
+        ch = max(ch + (2.0 * nodes.share - 1.0) * colourShift, 0.0);  // the nodes' colours, by their visible areas
 #endif
         vec4 albedoView = ms_combine(c0, ch, cs);
 #ifdef MS_IRRADIANCE
@@ -851,7 +927,13 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
             MsLight light = lights[j];
 #endif
             if (lit <= 0.0) continue;
+#ifdef MS_DRIVER_NODES
+            vec3 lambertUp = ms_lambertMoments(nodes.meanUp, nodes.covUp, wi);
+            vec3 lambertDown = ms_lambertMoments(nodes.meanDown, nodes.covDown, wi);
+            vec3 lambert = mix(lambertDown, lambertUp, nodes.share);
+#else
             vec3 lambert = ms_lambertMoments(visMean, visCov, wi);  // Lambert averaged over D_s, Cov(s, L)
+#endif
             float cosine = lambert.x;
             if (cosine <= 0.0) continue;
 #ifdef MS_SLOPE_MAP
@@ -870,6 +952,10 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
 #else
             light.visibility = ms_horizonVisibility(light.visibility, m, wo, wi, s.slope);
 #endif
+#endif
+#ifdef MS_DRIVER_NODES
+            // each node's colour under its own light
+            ch = max(ch + colourShift * (nodes.share * lambertUp.x - (1.0 - nodes.share) * lambertDown.x) / cosine, 0.0);
 #endif
             vec4 albedo = light.visibility * ms_combine(c0, ch, csLit);
             sampleRadiance += lit * albedo.rgb * cosine * sh_lightColour[j];
