@@ -196,10 +196,13 @@ class MicrosurfaceMaterial:
             heights = self.transfer_scale * self.transfer.g(v)  # the relief's range, 0 included
             uniforms["u_transferHeights"] = (min(float(heights.min()), 0.0), max(float(heights.max()), 0.0))
             if self._driver_colour():
-                from prefilter.microsurface.driver_colour import preconvolve_driver_colour
+                from prefilter.microsurface.driver_colour import (
+                    preconvolve_driver_colour,
+                    preconvolve_driver_slopes,
+                )
 
                 cmap = self.maps["height"]
-                driver, driver_map = preconvolve_driver_colour(
+                args = (
                     cmap.table.premultiplied(),
                     cmap.scale,
                     cmap.offset,
@@ -207,22 +210,13 @@ class MicrosurfaceMaterial:
                     self.transfer_scale,
                     float(np.sqrt(self.height.variance())),
                 )
+                driver, driver_map = preconvolve_driver_colour(*args)
+                slopes, unit = preconvolve_driver_slopes(*args)  # the shading samples' slope nodes
                 textures["u_driverColour"] = driver.upload(ctx)
-                owned.append(textures["u_driverColour"])
+                textures["u_driverSlopeColour"] = slopes.upload(ctx)
+                owned += [textures["u_driverColour"], textures["u_driverSlopeColour"]]
                 uniforms["u_driverMap"] = driver_map
                 uniforms["u_driverRange"] = (*driver.mu_range, driver.sigma_max)
-                from prefilter.microsurface.driver_colour import preconvolve_driver_slopes
-
-                first, unit = preconvolve_driver_slopes(
-                    cmap.table.premultiplied(),
-                    cmap.scale,
-                    cmap.offset,
-                    self.transfer,
-                    self.transfer_scale,
-                    float(np.sqrt(self.height.variance())),
-                )
-                textures["u_driverSlopeColour"] = first.upload(ctx)
-                owned.append(textures["u_driverSlopeColour"])
                 uniforms["u_driverSlopeUnit"] = unit
             uniforms["u_transferSlopes"] = (
                 self.transfer_scale * float(np.max(np.abs(self.transfer.g_prime(v)))),
