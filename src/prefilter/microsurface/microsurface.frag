@@ -471,15 +471,15 @@ struct MsLight {
     float lambdaIC;  // Λ_i of the coarse surface
 };
 
-#if defined(MS_SPHERE) && !defined(MS_TRANSFER)
-// Smith's shadowing over a sphere (smith.glsl ms_curvedLight, curved_shadowing.py; beyond the paper), for
-// Gaussian reliefs only: with a transfer function the band below the horizon keeps the plane's rule, which
-// the moss's test holds to the reference
-// (test_tall_relief_on_a_sphere_takes_light_from_below_the_macro_horizon).
+#ifdef MS_SPHERE
+// Smith's shadowing over a sphere (smith.glsl ms_curvedLight, curved_shadowing.py; beyond the paper).
 // Measured (micro-heights-sphere, 256 px, 64-spp references, surface-filter FLIP; time unchanged): 0.0596 ->
 // 0.0552 at 24 units, 0.0549 -> 0.0527 at 10, 0.0502 -> 0.0501 at the preset's 4.24; micro-snake-sphere
-// 0.0675 -> 0.0669, micro-slopes-sphere 0.0911 -> 0.0909.
-#define MS_CURVED
+// 0.0675 -> 0.0669, micro-slopes-sphere 0.0911 -> 0.0909. With a transfer function only the micro relief's
+// light below the macro horizon takes it (ms_facetMicroVisibility), not Λ_i above it (ms_light): the
+// curve's constants were fitted on fBm, and on the moss and sponge the raised Λ_i cost 0.02-0.06 x naive's
+// frame for little (curved everywhere -> below the horizon only, FLIP at 24 / 14 units: moss 0.0865 ->
+// 0.0867, 0.1027 -> 0.1017; sponge 0.0911 -> 0.0944, 0.0936 -> 0.0941).
 vec3 ms_curvedLight(vec3 w, float sigma) {
     return ms_curvedLight(w, sigma, ms_radius, MS_CURVED_ELEVATION);
 }
@@ -489,7 +489,7 @@ float ms_curvedDescent(vec3 w, float sigma) {
 #endif
 
 MsLight ms_light(MsMasking m, vec3 wi) {
-#ifdef MS_CURVED
+#if defined(MS_SPHERE) && !defined(MS_TRANSFER)
     float lambdaIT = ms_lambda(ms_curvedLight(wi, m.sigmaT), m.totalCov);
     float lambdaIC = ms_lambda(ms_curvedLight(wi, m.sigmaC), m.coarseCov);
 #else
@@ -514,8 +514,8 @@ MsLight ms_light(MsMasking m, vec3 wi) {
 // shadow ray decides whether the coarse relief lets the light through; the micro relief then shadows as a
 // plane tangent to the coarse facet (slope s): V̄ (eq. 12) of the micro statistics, ω_o and ω_i
 // measured from the facet's normal (their in-plane parts taken along the first axis: the micro slopes are
-// isotropic); for Gaussian reliefs the light's slope over the facet is the curved one (ms_curvedLight),
-// times the share that clears the dive below the facet's horizon (ms_curvedDescent). ms_horizonVisibility
+// isotropic); the light's slope over the facet is the curved one (ms_curvedLight), times the share that
+// clears the dive below the facet's horizon (ms_curvedDescent). ms_horizonVisibility
 // blends it into V̄_t / V̄_c over 0 < ω_i.z < sqrt(2σ_t/R), so light is continuous across the horizon.
 // Measured (micro-moss-sphere, 256 px, 64 spp): the band within 0.15 below the horizon was 40 % too dark
 // with no light there; it is now within 4 % (FLIP 0.120 -> 0.111 with the shadow budget).
@@ -526,14 +526,9 @@ float ms_facetMicroVisibility(MsMasking m, vec3 wo, vec3 wi, vec2 slope) {
     vec3 microCov = max(m.totalCov - m.coarseCov, vec3(0.0));
     float lambdaO = ms_lambda(vec3(length(wo - oz * n), 0.0, oz), microCov);
     vec3 light = vec3(length(wi - iz * n), 0.0, iz);
-#ifdef MS_CURVED
     float sigma = sqrt(m.microVariance);  // the micro relief's height deviation over the facet
     float visibility = ms_averageVisibility(lambdaO, ms_lambda(ms_curvedLight(light, sigma), microCov));
     return visibility * ms_curvedDescent(light, sigma);
-#else
-    if (iz <= 0.0) return 0.0;
-    return ms_averageVisibility(lambdaO, ms_lambda(light, microCov));
-#endif
 }
 
 // A light's V̄ (visibility = V̄_t / V̄_c) with the horizon band above: the facet's micro visibility below the
