@@ -24,6 +24,7 @@ CASES = {
     "marble-cube": ("point", "gaussian"),
     "terrain-contours": ("point", "gaussian"),
     "micro-heights-sphere": ("point", "surface-filter"),
+    "micro-sponge-sphere": ("surface-filter",),  # a transfer function: its tables over the driver
     "normals-hemispheres-plane-shadowed": ("point", "multilobe"),
     "normals-velvet-sphere": ("naive", "multilobe"),
     "diffraction-grating-plane": ("point", "fast"),

@@ -56,15 +56,20 @@ SIGMA_MAX = 3.0 / (2.0 * DRIVER_SPAN)
 MU_RANGE = (-0.25, 1.25)
 
 
+def _driver_grid(sigma_f: float) -> np.ndarray:
+    """The tables' driver values f_i = −L + (i + 0.5) 2L / n, L = DRIVER_SPAN σ_f."""
+    span = DRIVER_SPAN * sigma_f
+    return -span + (np.arange(DRIVER_ENTRIES) + 0.5) * (2.0 * span / DRIVER_ENTRIES)
+
+
 def driver_colour_table(
     colours: ColourTable, scale: float, offset: float, transfer, transfer_scale: float, sigma_f: float
 ) -> tuple[ColourTable, tuple[float, float]]:
     """K(f) = C(scale · transfer_scale · g(f) + offset) as a clamp table over f in [−L, L] (premultiplied as
     `colours` is given), and the affine map (a, b) from the driver f to the table's index u = a f + b."""
-    span = DRIVER_SPAN * sigma_f
-    f = -span + (np.arange(DRIVER_ENTRIES) + 0.5) * (2.0 * span / DRIVER_ENTRIES)
+    f = _driver_grid(sigma_f)
     entries = colours.point(scale * transfer_scale * transfer.g(f) + offset)
-    return ColourTable(entries.astype(np.float32), "clamp"), (1.0 / (2.0 * span), 0.5)
+    return ColourTable(entries.astype(np.float32), "clamp"), (1.0 / (2.0 * DRIVER_SPAN * sigma_f), 0.5)
 
 
 def preconvolve_driver_colour(
@@ -86,9 +91,7 @@ def driver_slope_table(
     """(K(f).rgb q(f), q(f)) over driver_colour_table's grid, q = g′/G with G the largest g′ on the grid (so
     the entries stay within [0, 1]), and G · transfer_scale: q's unit in dh/df."""
     table, _ = driver_colour_table(colours, scale, offset, transfer, transfer_scale, sigma_f)
-    span = DRIVER_SPAN * sigma_f
-    f = -span + (np.arange(DRIVER_ENTRIES) + 0.5) * (2.0 * span / DRIVER_ENTRIES)
-    slope = transfer.g_prime(f)
+    slope = transfer.g_prime(_driver_grid(sigma_f))
     unit = float(np.max(slope))
     q = slope / unit
     entries = np.concatenate([table.entries[:, :3] * q[:, None], q[:, None]], axis=1)
