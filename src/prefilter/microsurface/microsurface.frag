@@ -10,7 +10,9 @@
 //   MODE_MARCH_STEPS     diagnostic: march steps of the point mode's primary and shadow rays / 256 (red)
 //   MODE_SURFACE_FILTER  Heitz et al.: Λ_o, Λ_i (eq. 2 ff.; of the fractal's effective slopes, beyond the
 //                        paper: microsurface/fractal_masking.py), V̄ (eq. 12), D_h (eqs. 13–17, exact table),
-//                        the visible-slope distribution D_s (§5.2), Lambert averaged over D_s, combinations (§6)
+//                        the visible-slope distribution D_s (§5.2), Lambert averaged over D_s, combinations (§6);
+//                        under a transfer function (§7) D_h and the colour over the driver, and the slopes as
+//                        two nodes of g' (ms_driverNodes; beyond the paper, driver_colour.py)
 // Lighting: directional lights sh_lightDirection/Colour (world) with shadows, plus unshadowed ambient;
 // or, with MS_IRRADIANCE, an environment's irradiance in 9 SH coefficients (§5.3) and nothing else.
 // Colour maps (defines MS_HEIGHT_MAP, MS_SLOPE_MAP, MS_TEXTURE_MAP; _CONSTANT for a one-colour map):
