@@ -1390,9 +1390,19 @@ def _far_away_with_and_without(monkeypatch, preset, distance, size, edit_defines
     return scene, reference, covered, images["surface-filter"], variant
 
 
-def _without(define):
-    """An edit_defines for _far_away_with_and_without: the shader's defines less `define`."""
-    return lambda defines: {k: v for k, v in defines.items() if k != define}
+FAR_SPONGE_SIZE = (128, 128)
+
+
+def _far_sponge_with_and_without(monkeypatch, define):
+    """_far_away_with_and_without for the sponge at 12 units and 128 px (a pixel as at 24 units and 256 px),
+    the variant without the shader's `define`."""
+    return _far_away_with_and_without(
+        monkeypatch,
+        "micro-sponge-sphere",
+        12.0,
+        FAR_SPONGE_SIZE,
+        lambda defines: {k: v for k, v in defines.items() if k != define},
+    )
 
 
 def test_the_far_height_sphere_keeps_the_texture_of_its_first_octave(monkeypatch):
@@ -1498,15 +1508,10 @@ def test_the_far_sponge_keeps_the_hue_of_its_heights(monkeypatch):
     them), and blue over red too (1.7 %, 3.3 %);
     with the height colour read over §7's Gaussian of the heights they are 13 % and 18 % low (the sphere
     turns red-brown where the reference is ochre), which the test also checks."""
-    size = (128, 128)
-    scene, reference, covered, driver, gaussian = _far_away_with_and_without(
-        monkeypatch,
-        "micro-sponge-sphere",
-        12.0,
-        size,
-        _without("MS_DRIVER_COLOUR"),
+    scene, reference, covered, driver, gaussian = _far_sponge_with_and_without(
+        monkeypatch, "MS_DRIVER_COLOUR"
     )
-    lit = covered & (_macro_sphere_cosine(scene, size) > 0.3)
+    lit = covered & (_macro_sphere_cosine(scene, FAR_SPONGE_SIZE) > 0.3)
     assert lit.sum() > 400
 
     def hue(image):
@@ -1528,15 +1533,8 @@ def test_the_far_sponge_is_lit_as_a_flat_top_beside_steep_walls(monkeypatch):
     0.118 against 0.156."""
     from prefilter.metrics import compare
 
-    size = (128, 128)
-    scene, reference, covered, nodes, gaussian = _far_away_with_and_without(
-        monkeypatch,
-        "micro-sponge-sphere",
-        12.0,
-        size,
-        _without("MS_DRIVER_NODES"),
-    )
-    cosine = _macro_sphere_cosine(scene, size)
+    scene, reference, covered, nodes, gaussian = _far_sponge_with_and_without(monkeypatch, "MS_DRIVER_NODES")
+    cosine = _macro_sphere_cosine(scene, FAR_SPONGE_SIZE)
 
     def brightness(image, low, high):
         band = covered & (cosine > low) & (cosine <= high)

@@ -407,11 +407,12 @@ MsNodes ms_driverNodes(vec3 wo, MsSurface s, MsMasking m, float lean) {
     nodes.spread = sqrt(max(gain.y - gain.x * gain.x, 0.0));
     float up = gain.x + nodes.spread, down = gain.x - nodes.spread;
     vec2 gradient = s.slope / max(gain.x, 1e-30);  // ∇f̄ (s.slope = E[h'] ∇f̄)
+    vec2 meanUp = up * gradient, meanDown = max(down, 0.0) * gradient;
     vec3 cov = ms_slopeVariance * vec3(1.0, 0.0, 1.0);
-    float areaUp = ms_visibleSlopes(wo, up * gradient, up * up * cov, nodes.meanUp, nodes.covUp);
-    float areaDown = ms_visibleSlopes(wo, max(down, 0.0) * gradient, down * down * cov, nodes.meanDown, nodes.covDown);
-    nodes.meanUp += lean * (nodes.meanUp - up * gradient);
-    nodes.meanDown += lean * (nodes.meanDown - max(down, 0.0) * gradient);
+    float areaUp = ms_visibleSlopes(wo, meanUp, up * up * cov, nodes.meanUp, nodes.covUp);
+    float areaDown = ms_visibleSlopes(wo, meanDown, down * down * cov, nodes.meanDown, nodes.covDown);
+    nodes.meanUp += lean * (nodes.meanUp - meanUp);
+    nodes.meanDown += lean * (nodes.meanDown - meanDown);
     nodes.share = areaUp / max(areaUp + areaDown, 1e-30);
     nodes.area = 0.5 * (areaUp + areaDown);
     return nodes;
@@ -840,9 +841,6 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
 #endif
         vec2 visMean;
         vec3 visCov;
-#ifndef MS_DRIVER_NODES
-        float area = ms_visibleSlopes(wo, s.slope, s.slopeCov, visMean, visCov);  // and the sample's share, below
-#endif
         // The fBm's visible slopes lean further towards the eye than D_s (Smith's) says: on it a fine facet on
         // the far side of a coarse hill is masked by the hill more often. Ray cast, D_s's shift is short by
         // 10 % at grazing views and right at 40° elevation (fractal_masking.py, slope_lean: its constants).
@@ -859,6 +857,7 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
         visCov = mix(nodes.covDown, nodes.covUp, nodes.share)
                + nodes.share * (1.0 - nodes.share) * vec3(apart.x * apart.x, apart.x * apart.y, apart.y * apart.y);
 #else
+        float area = ms_visibleSlopes(wo, s.slope, s.slopeCov, visMean, visCov);  // and the sample's share, below
         visMean += lean * (visMean - s.slope);
 #endif
 #ifdef MS_TEXTURE_MAP
