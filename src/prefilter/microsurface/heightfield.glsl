@@ -297,8 +297,9 @@ vec4 ms_fractalGrad(vec3 p, int first, int count) {
 // The slope (macro tangent frame) at p of the coarse surface that a footprint (dpdx, dpdy) keeps: the height
 // octaves weighted as ms_setWeights would weight them for that footprint (with a transfer function, times
 // E[g'] at the current split's σ_f), without changing the current split. In `height`, from the same noise
-// evaluations, the current split's surface height at p (ms_surfaceHeight).
-vec2 ms_coarseSlope(vec3 p, mat3 frame, vec3 dpdx, vec3 dpdy, out float height) {
+// evaluations, the current split's surface height at p (ms_surfaceHeight), and in `driver` the driver f
+// there and the footprint's ∇f (the same as height and slope without a transfer function).
+vec2 ms_coarseSlope(vec3 p, mat3 frame, vec3 dpdx, vec3 dpdy, out float height, out vec3 driver) {
     vec3 lx = ms_latticeFromObject * dpdx;
     vec3 ly = ms_latticeFromObject * dpdy;
     vec3 lp = ms_latticeFromObject * p;
@@ -311,6 +312,7 @@ vec2 ms_coarseSlope(vec3 p, mat3 frame, vec3 dpdx, vec3 dpdy, out float height) 
         height += ms_weight[k] * octave.w;
         if (k + 1 >= ms_heightOctaves) break;  // at the end of the body (MS_MAX_OCTAVES)
     }
+    driver = vec3(height, dot(fg.xyz, frame[0]), dot(fg.xyz, frame[1]));
 #ifdef MS_TRANSFER
     fg.xyz *= ms_transfer(fg.w, ms_transferSigma).z;  // ∇E[g(f)] = E[g'] ∇f
     height = ms_transfer(height, ms_transferSigma).x;

@@ -295,6 +295,22 @@ MsSurface ms_surfaceAt(vec3 p, mat3 frame) {
     return s;
 }
 
+#ifdef MS_TRANSFER
+// The current split's unresolved statistics about a coarse driver (f, ∇f in the macro tangent frame), as
+// ms_surfaceAt gives them at a point of that driver, without evaluating the fractal.
+MsSurface ms_unresolvedAbout(vec3 driver) {
+    MsSurface s;
+    s.transferMoments = ms_transfer(driver.x, ms_transferSigma);
+    ms_transferStats(s.transferMoments, driver.yz, ms_slopeVariance * vec3(1.0, 0.0, 1.0), s.h, s.heightVariance,
+                     s.slope, s.slopeCov);
+    s.r = 0.0;
+    s.linear = vec3(0.0);
+    s.heightResidual = s.heightVariance;
+    s.driver = driver.x;
+    return s;
+}
+#endif
+
 // Shading samples: where the sub-pixel ray through the macro surface point x0 (from the eye for perspective
 // cameras, along the view direction d for orthographic ones) meets the plane through the marched point q with
 // normal n (main(): the coarse surface's tilt over twice the pixel): the parallax of the marched relief to
@@ -340,7 +356,9 @@ struct MsMasking {
                         // MS_DRIVER_COLOUR the driver's, in driver units)
 };
 
-MsMasking ms_masking(vec3 wo, MsSurface s, MsFootprint f) {
+// The slope and height statistics of the masking at s, without Λ(ω_o) and D_h (ms_masking adds them): all that
+// the micro relief's visibility below the horizon needs (ms_facetMicroVisibility).
+MsMasking ms_maskingStatistics(MsSurface s, MsFootprint f) {
     // (E[h'], E[h'²]) scale driver variances to height variances (1, 1 without a transfer function)
     vec2 gain = s.transferMoments.zw;
     vec3 coarseCov = f.marchedCov * gain.y;
@@ -354,9 +372,6 @@ MsMasking ms_masking(vec3 wo, MsSurface s, MsFootprint f) {
     m.sigmaC = sqrt(coarseVariance);
     m.sigmaT = sqrt(microVariance + coarseVariance);
     m.microVariance = microVariance;
-    m.lambdaOT = ms_lambda(wo, m.totalCov);
-    m.lambdaOC = ms_lambda(wo, m.coarseCov);
-    m.viewHeights = vec2(0.0);
 #ifdef MS_DRIVER_COLOUR
     // the driver's split as the heights' above, in driver units: the coarse (marched) variance, and beyond it
     // the sample's unresolved part (ms_transferSigma of the current split) and what the samples resolve
@@ -364,6 +379,16 @@ MsMasking ms_masking(vec3 wo, MsSurface s, MsFootprint f) {
     m.driverUnresolved = ms_transferSigma * ms_transferSigma / max(driverMicroVariance, 1e-30);
     m.sigmaFC = sqrt(f.marchedVariance);
     m.sigmaFT = sqrt(driverMicroVariance + f.marchedVariance);
+#endif
+    return m;
+}
+
+MsMasking ms_masking(vec3 wo, MsSurface s, MsFootprint f) {
+    MsMasking m = ms_maskingStatistics(s, f);
+    m.lambdaOT = ms_lambda(wo, m.totalCov);
+    m.lambdaOC = ms_lambda(wo, m.coarseCov);
+    m.viewHeights = vec2(0.0);
+#ifdef MS_DRIVER_COLOUR
     m.viewHeights = ms_microHeights(m.lambdaOT, m.lambdaOC, m.sigmaFT, m.sigmaFC);
 #elif defined(MS_HEIGHT_MAP)
     m.viewHeights = ms_microHeights(m.lambdaOT, m.lambdaOC, m.sigmaT, m.sigmaC);
@@ -534,12 +559,14 @@ float ms_facetMicroVisibility(MsMasking m, vec3 wo, vec3 wi, vec2 slope) {
     return visibility * ms_curvedDescent(light, sigma);
 }
 
-// A light's V̄ (visibility = V̄_t / V̄_c) with the horizon band above: the facet's micro visibility below the
-// horizon, blended into V̄ over the band.
+// A light's V̄ (visibility = V̄_t / V̄_c) with the horizon band above: the facet's micro visibility `facet`
+// below the horizon, blended into V̄ over the band of the whole relief's deviation σ_t.
+float ms_horizonBlend(float visibility, float facet, float sigmaT, vec3 wi) {
+    float band = sqrt(2.0 * sigmaT / ms_radius);
+    return wi.z >= band ? visibility : mix(facet, wi.z > 0.0 ? visibility : 0.0, smoothstep(0.0, band, wi.z));
+}
 float ms_horizonVisibility(float visibility, MsMasking m, vec3 wo, vec3 wi, vec2 slope) {
-    float band = sqrt(2.0 * m.sigmaT / ms_radius);
-    if (wi.z >= band) return visibility;
-    return mix(ms_facetMicroVisibility(m, wo, wi, slope), wi.z > 0.0 ? visibility : 0.0, smoothstep(0.0, band, wi.z));
+    return ms_horizonBlend(visibility, ms_facetMicroVisibility(m, wo, wi, slope), m.sigmaT, wi);
 }
 
 // Where the masking is the same for every sample (no transfer function), the band is worked out once per
@@ -547,13 +574,21 @@ float ms_horizonVisibility(float visibility, MsMasking m, vec3 wo, vec3 wi, vec2
 // sample's: llvmpipe ran it for every sample and light, masked, whether a light was in the band or not.
 // Measured (256 px, 64-spp references, surface-filter FLIP per sample -> per pixel): height sphere
 // 0.0514 -> 0.0515, snake 0.0659 -> 0.0662, slope sphere 0.0730 -> 0.0731; 0.02-0.03x naive's time less.
-// With a transfer function the masking is each sample's, so the band is worked out per sample, but on the
-// same placement facet: on each sample's own coarse slope (finer octaves than the placement's) the moss's
-// bands next to the macro horizon came out 9.5 % (below) and 9.9 % (above) too bright against the reference
-// (128 px, 16 spp; 1.1 % and 2.5 % on the placement facet; FLIP at 256 px against 64 spp 0.0895 -> 0.0890,
-// micro-sponge-sphere 0.0969 -> 0.0967).
-#if !defined(MS_TRANSFER) && MS_SHADING_SAMPLES > 1
+// With a transfer function the masking is each sample's; the band is blended per sample (its σ_t), but the
+// facet's micro visibility below the horizon is worked out once per light too, on the same placement facet,
+// with the masking of the samples' split about q's coarse driver (ms_unresolvedAbout). Per sample it had
+// cost 0.05 x naive's frame on the moss and sponge. Measured (256 px, 64-spp references, surface-filter FLIP
+// and time ÷ naive, 7-9 round-robin rounds, per sample -> per pixel): moss 0.0792 -> 0.0793 at 1.486 ->
+// 1.460, at 24 and 14 units 0.0867 -> 0.0866 and 0.1017 -> 0.1022; sponge 0.0838 -> 0.0838 at 1.970 ->
+// 1.915. On each sample's own coarse slope (finer octaves than the placement's) the moss's bands next to the
+// macro horizon had come out 9.5 % (below) and 9.9 % (above) too bright against the reference (128 px,
+// 16 spp; 1.1 % and 2.5 % on the placement facet).
+#if MS_SHADING_SAMPLES > 1
+#ifdef MS_TRANSFER
+#define MS_HORIZON_FACET_PER_PIXEL
+#else
 #define MS_HORIZON_PER_PIXEL
+#endif
 #endif
 #endif
 
@@ -750,7 +785,8 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     // snake 0.0698 -> 0.0659, slope sphere 0.0767 -> 0.0730, height sphere 0.0499 -> 0.0514 (its samples'
     // heights followed q's facet better); the macro plane itself gave 0.0695, 0.0755 and 0.0569.
     float qHeight;  // the marched surface's height at q (q is off it by the march's tolerance)
-    vec2 placementSlope = ms_coarseSlope(p, frame, 2.0 * dpdx, 2.0 * dpdy, qHeight);
+    vec3 qDriver;   // its driver there, and the driver's slope over the placement's region
+    vec2 placementSlope = ms_coarseSlope(p, frame, 2.0 * dpdx, 2.0 * dpdy, qHeight, qDriver);
     vec3 placementNormal = normalize(frame * vec3(-placementSlope, 1.0));
     MsSplit marched = ms_saveSplit();
     vec3 boxX = sub.x * gridX, boxY = sub.y * gridY;  // a sample's footprint
@@ -801,6 +837,17 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     }
 #if MS_SHADING_SAMPLES > 1
     ms_restoreSplit(sampled);
+#endif
+#ifdef MS_HORIZON_FACET_PER_PIXEL
+    // the micro relief's light below the horizon, once per light (the band is blended per sample, below)
+    float facetVisibility[SH_LIGHTS];
+    MsMasking facetMasking = ms_maskingStatistics(ms_unresolvedAbout(qDriver), footprint);
+    for (int j = 0; j < SH_LIGHTS; ++j) {
+        facetVisibility[j] = 0.0;
+        if (j >= sh_lightCount) break;
+        vec3 wi = normalize(mat3(u_objectFromWorld) * sh_lightDirection[j]) * frame;
+        facetVisibility[j] = ms_facetMicroVisibility(facetMasking, wo, wi, placementSlope);
+    }
 #endif
 #endif
     // Each row's samples are averaged with their weights, and the rows with equal ones: a column's row is
@@ -941,10 +988,10 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
             ch = ms_heightColour(s, m, light.heights, boxX, boxY, perturbVariance);
 #endif
 #if defined(MS_SPHERE) && !defined(MS_HORIZON_PER_PIXEL)
-#if MS_SHADING_SAMPLES > 1
-            // on the placement plane's facet as per pixel above, with this sample's masking (a transfer
+#ifdef MS_HORIZON_FACET_PER_PIXEL
+            // the facet's visibility as per pixel above, blended over this sample's band (a transfer
             // function's varies with the sample's statistics)
-            light.visibility = ms_horizonVisibility(light.visibility, m, wo, wi, placementSlope);
+            light.visibility = ms_horizonBlend(light.visibility, facetVisibility[j], m.sigmaT, wi);
 #else
             light.visibility = ms_horizonVisibility(light.visibility, m, wo, wi, s.slope);
 #endif
