@@ -259,6 +259,23 @@ struct MsSurface {
     float driver;          // the coarse surface's driver f at the point (its height without a transfer function)
 };
 
+#ifdef MS_TRANSFER
+// The current split's unresolved statistics about a coarse driver (f, ∇f in the macro tangent frame), as
+// ms_surfaceAt gives them at a point of that driver (g(f) is not linear: its heights stay a Gaussian of all
+// their variance), without evaluating the fractal.
+MsSurface ms_unresolvedAbout(vec3 driver) {
+    MsSurface s;
+    s.transferMoments = ms_transfer(driver.x, ms_transferSigma);
+    ms_transferStats(s.transferMoments, driver.yz, ms_slopeVariance * vec3(1.0, 0.0, 1.0), s.h, s.heightVariance,
+                     s.slope, s.slopeCov);
+    s.r = 0.0;
+    s.linear = vec3(0.0);
+    s.heightResidual = s.heightVariance;
+    s.driver = driver.x;
+    return s;
+}
+#endif
+
 MsSurface ms_surfaceAt(vec3 p, mat3 frame) {
     MsSurface s;
     vec3 shading;
@@ -278,14 +295,7 @@ MsSurface ms_surfaceAt(vec3 p, mat3 frame) {
     s.slopeCov = vec3(slopeVariance, 0.0, slopeVariance);
     s.transferMoments = vec4(0.0, 0.0, 1.0, 1.0);
 #ifdef MS_TRANSFER
-    s.transferMoments = ms_transfer(fg.w, ms_transferSigma);
-    float hMean;
-    vec2 slopeMean;
-    ms_transferStats(s.transferMoments, s.slope, s.slopeCov, hMean, s.heightVariance, slopeMean, s.slopeCov);
-    s.h = hMean;
-    s.slope = slopeMean;
-    s.linear = vec3(0.0);  // g(f) is not linear: its heights stay a Gaussian of all their variance
-    s.heightResidual = s.heightVariance;
+    s = ms_unresolvedAbout(vec3(fg.w, s.slope));  // about this point's driver and its gradient (grad above)
 #endif
 #ifdef MS_TEXTURE_FRACTAL
     s.r = ms_fractal(p, MS_MAX_OCTAVES, max(ms_weightedTextureOctaves, 1));
@@ -294,22 +304,6 @@ MsSurface ms_surfaceAt(vec3 p, mat3 frame) {
 #endif
     return s;
 }
-
-#ifdef MS_TRANSFER
-// The current split's unresolved statistics about a coarse driver (f, ∇f in the macro tangent frame), as
-// ms_surfaceAt gives them at a point of that driver, without evaluating the fractal.
-MsSurface ms_unresolvedAbout(vec3 driver) {
-    MsSurface s;
-    s.transferMoments = ms_transfer(driver.x, ms_transferSigma);
-    ms_transferStats(s.transferMoments, driver.yz, ms_slopeVariance * vec3(1.0, 0.0, 1.0), s.h, s.heightVariance,
-                     s.slope, s.slopeCov);
-    s.r = 0.0;
-    s.linear = vec3(0.0);
-    s.heightResidual = s.heightVariance;
-    s.driver = driver.x;
-    return s;
-}
-#endif
 
 // Shading samples: where the sub-pixel ray through the macro surface point x0 (from the eye for perspective
 // cameras, along the view direction d for orthographic ones) meets the plane through the marched point q with
@@ -816,6 +810,12 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     // (traced inside their loop when first needed, its set-up ran for every sample: llvmpipe runs both sides
     // of a branch).
     vec4 shadows[SH_LIGHTS];
+#ifdef MS_HORIZON_FACET_PER_PIXEL
+    // the micro relief's light below the horizon, once per light (the band is blended per sample, below),
+    // with the samples' split's statistics
+    float facetVisibility[SH_LIGHTS];
+    MsMasking facetMasking = ms_maskingStatistics(ms_unresolvedAbout(qDriver), footprint);
+#endif
 #if MS_SHADING_SAMPLES > 1
     MsSplit sampled = ms_saveSplit();
     ms_restoreSplit(marched);  // the marched surface casts them
@@ -831,23 +831,15 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
 #ifdef MS_HORIZON_PER_PIXEL
         lights[j].visibility = ms_horizonVisibility(lights[j].visibility, m, wo, wi, placementSlope);
 #endif
+#ifdef MS_HORIZON_FACET_PER_PIXEL
+        facetVisibility[j] = ms_facetMicroVisibility(facetMasking, wo, wi, placementSlope);
+#endif
         if (wi.z > -horizonDip) {
             shadows[j] = ms_shadowProfile(q, l, MS_SHADOW_STEPS, shadowReach, spacing / max(length(wi.xy), 0.1));
         }
     }
 #if MS_SHADING_SAMPLES > 1
     ms_restoreSplit(sampled);
-#endif
-#ifdef MS_HORIZON_FACET_PER_PIXEL
-    // the micro relief's light below the horizon, once per light (the band is blended per sample, below)
-    float facetVisibility[SH_LIGHTS];
-    MsMasking facetMasking = ms_maskingStatistics(ms_unresolvedAbout(qDriver), footprint);
-    for (int j = 0; j < SH_LIGHTS; ++j) {
-        facetVisibility[j] = 0.0;
-        if (j >= sh_lightCount) break;
-        vec3 wi = normalize(mat3(u_objectFromWorld) * sh_lightDirection[j]) * frame;
-        facetVisibility[j] = ms_facetMicroVisibility(facetMasking, wo, wi, placementSlope);
-    }
 #endif
 #endif
     // Each row's samples are averaged with their weights, and the rows with equal ones: a column's row is
