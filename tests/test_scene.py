@@ -69,6 +69,10 @@ BAD = [
         "object[0].material.fractal.octaves",
     ),
     (VALID.replace('shape = "sphere"', 'mesh = "nowhere.obj"'), "object[0].mesh: file not found"),
+    (
+        VALID.replace('shape = "sphere"', 'shape = "sphere"\nparams = { radious = 2.0 }'),
+        "object[0].params: primitive 'sphere' has no parameter 'radious'",
+    ),
     (VALID.replace("size = [64, 48]", "size = [64]"), "size: expected a list of 2 numbers"),
     (VALID.replace('type = "hart"', 'type = "velvet"'), "object[0].material.type: expected one of"),
 ]
@@ -105,3 +109,15 @@ def test_unknown_preset_lists_presets():
 def test_missing_scene_file(tmp_path):
     with pytest.raises(SceneError, match="cannot read"):
         load_scene(Path(tmp_path) / "absent.toml")
+
+
+def test_bad_primitive_values_name_the_file_and_object(tmp_path, capsys):
+    """Values are checked when the mesh is built (at render), and the error still names the file and key."""
+    path = tmp_path / "bad.toml"
+    path.write_text(VALID.replace('shape = "sphere"', 'shape = "sphere"\nparams = { radius = -1.0 }'))
+    load_scene(path)  # names are checked at load, values by the primitive
+    out = tmp_path / "out.png"
+    assert main(["render", str(path), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"prefilter: error: {path}: object[0].params: sphere: radius")
+    assert not out.exists()

@@ -9,8 +9,11 @@ from typing import Any
 from prefilter import PrefilterError
 
 
-def call_registered(registry: dict[str, Callable[..., Any]], what: str, name: str, params: dict) -> Any:
-    """registry[name](**params); an unknown name or parameter raises PrefilterError listing the valid ones."""
+def check_parameters(
+    registry: dict[str, Callable[..., Any]], what: str, name: str, params: dict
+) -> Callable[..., Any]:
+    """registry[name], after checking that it takes every key of params; an unknown name or parameter raises
+    PrefilterError listing the valid ones."""
     function = registry.get(name)
     if function is None:
         raise PrefilterError(f"unknown {what} '{name}' (valid: {', '.join(registry)})")
@@ -19,7 +22,12 @@ def call_registered(registry: dict[str, Callable[..., Any]], what: str, name: st
     if unknown:
         listed = ", ".join(valid) if valid else "none"
         raise PrefilterError(f"{what} '{name}' has no parameter '{unknown[0]}' (valid: {listed})")
-    return function(**params)
+    return function
+
+
+def call_registered(registry: dict[str, Callable[..., Any]], what: str, name: str, params: dict) -> Any:
+    """registry[name](**params), its name and parameters checked as check_parameters does."""
+    return check_parameters(registry, what, name, params)(**params)
 
 
 def call_from_table(table, registry: dict[str, Callable[..., Any]], what: str) -> Any:

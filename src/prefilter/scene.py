@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from prefilter import PrefilterError
+from prefilter.registry import check_parameters
 
 PRESET_DIR = Path(__file__).resolve().parent / "scenes"
 
@@ -234,6 +235,7 @@ class SceneObject:
     blend: str = "opaque"  # or "over" (premultiplied alpha compositing, drawn after opaque objects)
     double_sided: bool = False
     lit: bool = True
+    source: str = ""  # where the scene file defines it ("file: object[i]"), for errors found when it is built
 
 
 @dataclass
@@ -385,6 +387,11 @@ def _parse_object(r: Reader, index: int, base_dir: Path) -> SceneObject:
     params = r.raw("params", {})
     if not isinstance(params, dict):
         raise r.fail("params", "expected a table of primitive parameters")
+    if shape != "mesh":
+        try:
+            check_parameters(PRIMITIVES, "primitive", shape, params)
+        except PrefilterError as exc:
+            raise r.fail("params", str(exc)) from None
     mat = r.child("material", required=True)
     assert mat is not None
     kind = mat.string("type", "hart", choices=tuple(MATERIAL_TYPES))
@@ -400,6 +407,7 @@ def _parse_object(r: Reader, index: int, base_dir: Path) -> SceneObject:
         blend=r.string("blend", "opaque", choices=("opaque", "over")),
         double_sided=r.boolean("double_sided", False),
         lit=r.boolean("lit", True),
+        source=f"{r.source}: {r.path}",
     )
     r.finish()
     return obj

@@ -27,7 +27,7 @@ from prefilter.geometry import VERTEX_LAYOUT, Mesh, load_mesh, make_primitive
 from prefilter.gl.context import gl_context
 from prefilter.gl.program import build_program
 from prefilter.gl.uniforms import set_uniforms
-from prefilter.scene import Light, Scene, SceneObject
+from prefilter.scene import Light, Scene, SceneError, SceneObject
 
 BASE_MODES = ("point", "naive")
 MAX_LIGHTS = 4  # SH_MAX_LIGHTS in glsl/common/shading.glsl
@@ -91,6 +91,8 @@ def build_mesh(obj: SceneObject) -> Mesh:
     try:
         return make_primitive(obj.shape, **obj.shape_params)
     except PrefilterError as exc:
+        if obj.source:  # a scene file's parameters: name the file and key, as the loader does
+            raise SceneError(f"{obj.source}.params: {exc}") from None
         raise PrefilterError(f"object '{obj.name}': {exc}") from None
 
 
