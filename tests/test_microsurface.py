@@ -1570,7 +1570,15 @@ HEIGHT = "[object.material.height]\n"
             "irradiance.environment",
         ),
         (HEIGHT + '[object.material.transfer]\nfunction = "lava"\n' + TABLE, "transfer.function"),
+        (HEIGHT + '[object.material.transfer]\nfunction = "moss"\nsoftness = 0.0\n' + TABLE, "transfer"),
+        (HEIGHT + '[object.material.transfer]\nfunction = "moss"\nsharpness = 2.0\n' + TABLE, "transfer"),
+        (
+            '[object.material.height]\namplitude = 0.0\n[object.material.transfer]\nfunction = "moss"\n'
+            + TABLE,
+            "height.amplitude",
+        ),
         ('footprint = "screen"\n' + HEIGHT + TABLE, "footprint"),
+        ("[object.material.height]\nfrequency = 1e9\n" + TABLE, "height.frequency"),
         ("shading_samples = 5\n" + HEIGHT + TABLE, "shading_samples"),
     ],
 )

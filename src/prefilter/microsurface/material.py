@@ -269,6 +269,9 @@ class MicrosurfaceMaterial:
         )
 
 
+MAX_FREQUENCY = 1e8  # of the finest octave, in cycles per object unit
+
+
 def _fractal(r: Reader, defaults: Fractal) -> Fractal:
     fractal = Fractal(
         octaves=r.integer("octaves", defaults.octaves, lo=1, hi=MAX_OCTAVES),
@@ -277,6 +280,11 @@ def _fractal(r: Reader, defaults: Fractal) -> Fractal:
         gain=r.number("gain", defaults.gain, lo=0.0, hi=1.0),
         lacunarity=r.number("lacunarity", defaults.lacunarity, lo=1.0, hi=8.0),
     )
+    # the shaders sum a² f⁴ per octave in float32 (heightfield.glsl): beyond 1e8 that overflows, and the
+    # noise's lattice coordinates have long lost their fraction
+    finest = fractal.frequency * fractal.lacunarity ** (fractal.octaves - 1)
+    if finest > MAX_FREQUENCY:
+        raise r.fail("frequency", f"the finest octave's frequency {finest:.3g} exceeds {MAX_FREQUENCY:.0e}")
     r.finish()
     return fractal
 
@@ -336,12 +344,14 @@ def parse_microsurface(r: Reader, base_dir: Path) -> MicrosurfaceMaterial:
         from prefilter.microsurface.transfer import TRANSFER_FUNCTIONS
 
         name = xr.string("function", required=True, choices=tuple(TRANSFER_FUNCTIONS))
+        if height.amplitude <= 0.0:
+            raise hr.fail("amplitude", "must be > 0 with a [transfer] function (the driver f of h = g(f))")
         transfer_scale = xr.number("scale", 1.0, lo=0.0)
         params = {key: xr.number(key) for key in xr.table if key not in ("function", "scale")}
         try:
             transfer = TRANSFER_FUNCTIONS[name](**params)
-        except TypeError as exc:
-            raise xr.fail("function", f"bad parameters for {name}: {exc}") from None
+        except (TypeError, ValueError) as exc:  # an unknown parameter, or a value out of its range
+            raise xr.fail(None, str(exc)) from None
         xr.finish()
     environment, intensity, environment_sh = None, 1.0, None
     er = r.child("irradiance")
