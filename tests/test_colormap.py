@@ -328,6 +328,22 @@ def test_cm_sat_whole_table_average_for_modulo(uploaded):
     np.testing.assert_allclose(got, np.tile(mean, (len(f), 1)), atol=1e-6)
 
 
+@pytest.mark.parametrize("wrap", ["modulo", "clamp"])
+def test_cm_mip_below_float_resolution_is_the_level_0_lookup(uploaded, wrap):
+    """A footprint narrower than f's float spacing (a close-up, or a solid texture scaled to nearly nothing):
+    f ± w/2 round to f, and the clamp table's weights were all 0 (NaN). The answer is level 0's linear
+    interpolation of the entries at f, np.interp here."""
+    table, textures = uploaded["random", wrap]
+    (f,) = _f32(np.random.default_rng(RNG_SEED + 9).uniform(0.1, 0.9, 300))
+    w = np.full_like(f, 1e-9)  # f's float32 spacing is 7.5e-9 to 6e-8 here
+    x = f * N - 0.5
+    want = np.stack([np.interp(x, np.arange(N), table.entries[:, c]) for c in range(4)], axis=-1)
+    code = textures.wrap_code
+    for expr in (f"cm_mip(mip, f, w, {code})", f"cm_mip2(mip, f, w, 0.5 * w, {code})"):
+        got = _eval(expr, {"f": f, "w": w}, "mip", textures.mip)
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-5)
+
+
 @pytest.mark.parametrize("target", TARGETS)
 @pytest.mark.parametrize("wrap", ["modulo", "clamp"])
 def test_cm_mip_is_exact_on_aligned_power_of_two_boxes(uploaded, wrap, target):

@@ -127,7 +127,9 @@ vec4 cm_mip(sampler2D mipTable, float f, float width, int wrapMode) {
     float above = clamp(f + 0.5 * w - 1.0, 0.0, w);
     vec4 first = texelFetch(mipTable, ivec2(0, 0), 0);
     vec4 last = texelFetch(mipTable, ivec2(int(n) - 1, 0), 0);
-    return (below * first + above * last + inside * mid) / (below + above + inside);
+    // a footprint narrower than f's float resolution: f ± w/2 round to f, and all three parts are 0
+    float total = below + above + inside;
+    return total > 0.0 ? (below * first + above * last + inside * mid) / total : mid;
 }
 
 vec4 cm_mip2(sampler2D mipTable, float f, float wa, float wb, int wrapMode) {
