@@ -68,6 +68,14 @@ BAD = [
         VALID.replace('type = "hart"', 'type = "hart"\n[object.material.fractal]\noctaves = 9'),
         "object[0].material.fractal.octaves",
     ),
+    (
+        VALID.replace('type = "hart"', 'type = "hart"\n[object.material.fractal]\nlacunarity = 1e9'),
+        "object[0].material.fractal.lacunarity: octave 1's frequency scale exceeds",
+    ),
+    (
+        VALID.replace('type = "hart"', 'type = "hart"\n[object.material.fractal]\ngain = 1e9'),
+        "object[0].material.fractal.gain: octave 1's amplitude exceeds",
+    ),
     (VALID.replace('shape = "sphere"', 'mesh = "nowhere.obj"'), "object[0].mesh: file not found"),
     (
         VALID.replace('shape = "sphere"', 'shape = "sphere"\nparams = { radious = 2.0 }'),

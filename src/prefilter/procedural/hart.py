@@ -212,6 +212,9 @@ def _matrix_from(r: Reader) -> np.ndarray:
     return np.diag(r.vector("scale", 3, default=[1.0, 1.0, 1.0]))
 
 
+MAX_SCALE = 1e8  # of a fractal octave's amplitude and frequency
+
+
 @register_material("hart")
 def parse_hart(r: Reader, base_dir: Path) -> HartMaterial:
     quadric = quadric_matrix(r.vector("quadric", 10, default=[0.0] * 10))
@@ -241,6 +244,12 @@ def parse_hart(r: Reader, base_dir: Path) -> HartMaterial:
         velocity = fr.vector("velocity", 3, default=[0.0, 0.0, 0.0])
         for i in range(first, first + octaves):
             terms.append(NoiseTerm(amplitude * gain**i, lacunarity**i * base, offset.copy(), velocity.copy()))
+            # the shaders evaluate them in float32: beyond 1e8 the noise's lattice coordinates have lost
+            # their fraction (and the driver's gradient overflows)
+            if not lacunarity**i * np.abs(base).max() <= MAX_SCALE:
+                raise fr.fail("lacunarity", f"octave {i}'s frequency scale exceeds {MAX_SCALE:.0e}")
+            if not abs(amplitude * gain**i) <= MAX_SCALE:
+                raise fr.fail("gain", f"octave {i}'s amplitude exceeds {MAX_SCALE:.0e}")
         fr.finish()
     if len(terms) > MAX_TERMS:
         raise r.fail("noise", f"at most {MAX_TERMS} noise terms (noise + fractal octaves), got {len(terms)}")
