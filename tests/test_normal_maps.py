@@ -401,6 +401,8 @@ def test_generate_errors():
         generate("hemispheres", radius=0.7)
     with pytest.raises(PrefilterError, match="cylinders: size"):
         generate("cylinders", size=(0, 8))
+    with pytest.raises(PrefilterError, match="cylinders: size .W, H. must be at most 8192 a side"):
+        generate("cylinders", size=(128, 10**9))  # refused before it allocates
     with pytest.raises(PrefilterError, match="twill: over must be a positive integer"):
         generate("twill", over=1.5)
     assert generate("cylinders", size=[16, 8], count=2).size == (16, 8)  # lists from scene files

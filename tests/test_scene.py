@@ -78,6 +78,15 @@ BAD = [
     ),
     (VALID.replace('shape = "sphere"', 'mesh = "nowhere.obj"'), "object[0].mesh: file not found"),
     (
+        VALID.replace('shape = "sphere"', 'shape = "sphere"\nscale = [1.0, 0.0, 1.0]'),
+        "object[0].scale: must be",
+    ),
+    (VALID.replace("eye = [0.0, 0.0, 3.0]", "eye = [0.0, 3.0, 0.0]"), "camera.up: must not be parallel"),
+    (
+        VALID.replace("eye = [0.0, 0.0, 3.0]", "eye = [0.0, 0.0, 3.0]\neye_end = [0.0, 3.0, 0.0]"),
+        "camera.up: must not be parallel to the view direction (target - eye) at t = 1",
+    ),
+    (
         VALID.replace('shape = "sphere"', 'shape = "sphere"\nparams = { radious = 2.0 }'),
         "object[0].params: primitive 'sphere' has no parameter 'radious'",
     ),

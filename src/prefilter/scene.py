@@ -276,6 +276,8 @@ def register_material(name: str) -> Callable[[MaterialParser], MaterialParser]:
 def _transform(r: Reader) -> np.ndarray:
     """worldFromObject = T * Rz * Ry * Rx * S from translate / rotate (degrees, XYZ) / scale."""
     scale = r.vector("scale", 3, default=[1.0, 1.0, 1.0])
+    if not np.all(scale != 0.0):
+        raise r.fail("scale", f"must be non-zero on every axis, got {list(scale)}")
     angles = np.radians(r.vector("rotate", 3, default=[0.0, 0.0, 0.0]))
     translate = r.vector("translate", 3, default=[0.0, 0.0, 0.0])
     cx, cy, cz = np.cos(angles)
@@ -331,6 +333,14 @@ def parse_scene(text: str, source: str, base_dir: Path) -> Scene:
         raise cam.fail("far", f"must be greater than near ({camera.near})")
     if np.linalg.norm(camera.target - camera.eye) == 0:
         raise cam.fail("target", "must differ from eye")
+    for t in np.linspace(0.0, 1.0, 9 if camera.eye_end is not None or camera.target_end is not None else 1):
+        pose = camera.at(float(t))
+        forward = pose.target - pose.eye
+        if np.linalg.norm(np.cross(forward, camera.up)) <= 1e-9 * np.linalg.norm(forward) * np.linalg.norm(
+            camera.up
+        ):
+            at = f" at t = {t:g} of the flight" if t > 0 else ""
+            raise cam.fail("up", f"must not be parallel to the view direction (target - eye){at}")
     cam.finish()
 
     lights = []

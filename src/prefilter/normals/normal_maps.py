@@ -281,8 +281,14 @@ def _pair(value, generator: str, name: str) -> tuple[int, int]:
     return int(a), int(b)
 
 
+MAX_MAP_SIZE = 8192  # texels a side: the GL's usual texture limit
+
+
 def _size(size, generator: str) -> tuple[int, int]:
-    return _pair(size, generator, "size [W, H]")
+    w, h = _pair(size, generator, "size [W, H]")
+    if max(w, h) > MAX_MAP_SIZE:
+        raise PrefilterError(f"{generator}: size [W, H] must be at most {MAX_MAP_SIZE} a side, got {size!r}")
+    return w, h
 
 
 def _positive_int(value, generator: str, name: str) -> int:
