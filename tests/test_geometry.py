@@ -426,6 +426,10 @@ def test_load_mesh_errors(tmp_path):
         message = str(info.value)
         assert str(path) in message and "\n" not in message
         assert "contains no triangles" in message or "cannot read mesh" in message
+    binary = tmp_path / "binary.obj"  # trimesh would guess its encoding with a module it may lack
+    binary.write_bytes(b"v 0 0 0\n\xa9\xff\x00")
+    with pytest.raises(PrefilterError, match=r"binary.obj as OBJ: not UTF-8 text \(byte 0xa9 at offset 8\)"):
+        load_mesh(binary)
     empty = tmp_path / "empty.obj"
     empty.write_text("")
     with pytest.raises(PrefilterError, match="contains no triangles"):

@@ -138,3 +138,14 @@ def test_bad_primitive_values_name_the_file_and_object(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"prefilter: error: {path}: object[0].params: sphere: radius")
     assert not out.exists()
+
+
+def test_an_unreadable_mesh_names_the_scene_file_and_key(tmp_path, capsys):
+    (tmp_path / "empty.obj").write_text("")
+    path = tmp_path / "bad.toml"
+    path.write_text(VALID.replace('shape = "sphere"', 'mesh = "empty.obj"'))
+    out = tmp_path / "out.png"
+    assert main(["render", str(path), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"prefilter: error: {path}: object[0].mesh: mesh file")
+    assert "contains no triangles" in err[0] and not out.exists()

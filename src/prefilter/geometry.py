@@ -376,6 +376,14 @@ def load_mesh(path: str | os.PathLike) -> Mesh:
             f"unsupported mesh format '{ext or '(no extension)'}' for {path} "
             f"(supported: {', '.join(SUPPORTED_MESH_FORMATS)})"
         )
+    if ext == ".obj":  # a text format: trimesh guesses the encoding of anything else with a module we lack
+        try:
+            path.read_bytes().decode("utf-8")
+        except UnicodeDecodeError as exc:
+            byte = exc.object[exc.start]
+            raise PrefilterError(
+                f"cannot read mesh {path} as OBJ: not UTF-8 text (byte 0x{byte:02x} at offset {exc.start})"
+            ) from None
     try:
         scene = trimesh.load_scene(str(path))
     except Exception as exc:  # trimesh's loaders raise anything from ValueError to IndexError on bad input

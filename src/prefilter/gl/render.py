@@ -86,13 +86,13 @@ def program_defines(
 
 
 def build_mesh(obj: SceneObject) -> Mesh:
-    if obj.shape == "mesh":
-        return load_mesh(obj.mesh_path)
     try:
+        if obj.shape == "mesh":
+            return load_mesh(obj.mesh_path)
         return make_primitive(obj.shape, **obj.shape_params)
     except PrefilterError as exc:
-        if obj.source:  # a scene file's parameters: name the file and key, as the loader does
-            raise SceneError(f"{obj.source}.params: {exc}") from None
+        if obj.source:  # from a scene file: name the file and key, as the loader does
+            raise SceneError(f"{obj.source}.{'mesh' if obj.shape == 'mesh' else 'params'}: {exc}") from None
         raise PrefilterError(f"object '{obj.name}': {exc}") from None
 
 
