@@ -149,3 +149,16 @@ def test_an_unreadable_mesh_names_the_scene_file_and_key(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"prefilter: error: {path}: object[0].mesh: mesh file")
     assert "contains no triangles" in err[0] and not out.exists()
+
+
+def test_a_missing_asset_is_the_set_up_s_fault_not_the_scene_s(tmp_path, monkeypatch, capsys):
+    """The teapot's asset missing is not a scene-file error: exit 1, no file key, and how to get it."""
+    monkeypatch.setenv("PREFILTER_ASSETS", str(tmp_path / "elsewhere"))
+    path = tmp_path / "teapot.toml"
+    path.write_text(VALID.replace('shape = "sphere"', 'shape = "teapot"\nname = "pot"'))
+    out = tmp_path / "out.png"
+    assert main(["render", str(path), "-o", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    asset = tmp_path / "elsewhere" / "teapot.obj"
+    assert err == [f"prefilter: error: object 'pot': Utah teapot asset missing at {asset}; run: make setup"]
+    assert not out.exists()

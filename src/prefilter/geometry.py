@@ -314,6 +314,10 @@ def teapot_path() -> Path:
     return REPO_ROOT / ".cache" / "assets" / "teapot.obj"
 
 
+class MissingAsset(PrefilterError):
+    """A primitive's asset is not installed (the set-up's fault, not the scene's)."""
+
+
 def teapot() -> Mesh:
     """The Utah teapot (Newell 1975) with merged vertices, y up, bounding box centred on the origin and
     scaled so that its largest half-extent (along x, spout to handle) is 1.
@@ -324,7 +328,7 @@ def teapot() -> Mesh:
     """
     path = teapot_path()
     if not path.is_file():
-        raise PrefilterError(f"Utah teapot asset missing at {path}; run: make setup")
+        raise MissingAsset(f"Utah teapot asset missing at {path}; run: make setup")
     mesh = _read_trimesh(path)
     mesh.merge_vertices()
     lo, hi = mesh.bounds

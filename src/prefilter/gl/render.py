@@ -23,7 +23,7 @@ import moderngl
 import numpy as np
 
 from prefilter import PrefilterError
-from prefilter.geometry import VERTEX_LAYOUT, Mesh, load_mesh, make_primitive
+from prefilter.geometry import VERTEX_LAYOUT, Mesh, MissingAsset, load_mesh, make_primitive
 from prefilter.gl.context import gl_context
 from prefilter.gl.program import build_program
 from prefilter.gl.uniforms import set_uniforms
@@ -91,7 +91,7 @@ def build_mesh(obj: SceneObject) -> Mesh:
             return load_mesh(obj.mesh_path)
         return make_primitive(obj.shape, **obj.shape_params)
     except PrefilterError as exc:
-        if obj.source:  # from a scene file: name the file and key, as the loader does
+        if obj.source and not isinstance(exc, MissingAsset):  # the scene file's: name its file and key
             raise SceneError(f"{obj.source}.{'mesh' if obj.shape == 'mesh' else 'params'}: {exc}") from None
         raise PrefilterError(f"object '{obj.name}': {exc}") from None
 
