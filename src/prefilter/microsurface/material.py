@@ -9,7 +9,8 @@ or an environment map's irradiance in 9 SH coefficients (§5.3). microsurface.fr
 
 Scene TOML (under [object.material], type = "microsurface"):
   macro = "plane" | "sphere"; radius = 1.0 (sphere: must match the mesh)
-  [height]           octaves = 4, amplitude = 0.05, frequency = 4, gain = 0.5, lacunarity = 2 (Fractal)
+  [height]           octaves = 4, amplitude = 0.05, frequency = 4, gain = 0.5, lacunarity = 2 (Fractal);
+                     the finest octave's frequency at most 1e8 (MAX_FREQUENCY)
   [texture]          the same keys: the procedural driver r of C₀ and of the perturbation (optional)
   perturb = 0.0      ρ in C(h + ρ r)
   kappa = [κ₀, κ₁, κ₂]  default 1 for each map present
@@ -32,7 +33,8 @@ Scene TOML (under [object.material], type = "microsurface"):
       [....colour_table] as for Hart's model, [....preconvolved] as for the gaussian mode; a table with
       one colour throughout is that colour in every mode, with no table and no filtering
   [transfer]         function = "moss" | "sponge" | "linear" (microsurface/transfer.py), its parameters,
-                     scale (h = scale · g(f), with f the [height] fractal in driver units)
+                     scale (h = scale · g(f), with f the [height] fractal in driver units; its amplitude
+                     must then be > 0), e.g. softness > 0 for moss and sponge
   [irradiance]       environment = "file.exr" (equirectangular, linear; replaces lights and ambient),
                      intensity = 1 (exposure: the radiance of a white Lambertian facing up)
 """
