@@ -19,7 +19,8 @@ Scene TOML (under [object.material], type = "hart"):
   [[object.material.noise]]  amplitude, scale (number or 3), matrix (3x3, overrides scale), offset, velocity
   [object.material.fractal]  octaves, first = 1, lacunarity = 2, gain = 0.5, amplitude = 1, scale, offset,
                              velocity: expands to terms amplitude*gain^i n(lacunarity^i scale*s + offset),
-                             i = first .. first+octaves-1 (eqs. 6-8)
+                             i = first .. first+octaves-1 (eqs. 6-8); each term's frequency scale and
+                             amplitude at most 1e8 (MAX_SCALE)
   [object.material.colour_table]  wrap = "modulo"|"clamp", size = 256, interpolation = "linear"|"step",
                              stops = [[position, "#rrggbb" or "#rrggbbaa"], ...]
   [object.material.preconvolved]  size = [n_mu, n_sigma], sigma_max, mu_range (the gaussian mode's bake)
