@@ -333,12 +333,11 @@ def parse_scene(text: str, source: str, base_dir: Path) -> Scene:
         raise cam.fail("far", f"must be greater than near ({camera.near})")
     if np.linalg.norm(camera.target - camera.eye) == 0:
         raise cam.fail("target", "must differ from eye")
+    up = camera.up / max(np.linalg.norm(camera.up), 1e-300)
     for t in np.linspace(0.0, 1.0, 9 if camera.eye_end is not None or camera.target_end is not None else 1):
         pose = camera.at(float(t))
-        forward = pose.target - pose.eye
-        if np.linalg.norm(np.cross(forward, camera.up)) <= 1e-9 * np.linalg.norm(forward) * np.linalg.norm(
-            camera.up
-        ):
+        forward = (pose.target - pose.eye) / max(np.linalg.norm(pose.target - pose.eye), 1e-300)
+        if np.linalg.norm(np.cross(forward, up)) <= 1e-9:  # the view matrix's right = forward × up: none
             at = f" at t = {t:g} of the flight" if t > 0 else ""
             raise cam.fail("up", f"must not be parallel to the view direction (target - eye){at}")
     cam.finish()
