@@ -359,6 +359,17 @@ def make_primitive(kind: str, **params) -> Mesh:
 # Loading
 
 
+def _why_unreadable(path: Path, exc: Exception) -> str:
+    """trimesh's error on one line; for an .obj that is not UTF-8 text, where its bytes stop being text
+    (trimesh guesses the encoding of such files with a module that may be missing, and reports that)."""
+    if path.suffix.lower() == ".obj":
+        try:
+            path.read_bytes().decode("utf-8")
+        except UnicodeDecodeError as bad:
+            return f"not UTF-8 text (byte 0x{bad.object[bad.start]:02x} at offset {bad.start})"
+    return _one_line(exc)
+
+
 def load_mesh(path: str | os.PathLike) -> Mesh:
     """Read an OBJ, PLY, STL, glTF or GLB file through trimesh into one Mesh, in the file's own units.
 
@@ -380,18 +391,12 @@ def load_mesh(path: str | os.PathLike) -> Mesh:
             f"unsupported mesh format '{ext or '(no extension)'}' for {path} "
             f"(supported: {', '.join(SUPPORTED_MESH_FORMATS)})"
         )
-    if ext == ".obj":  # a text format: trimesh guesses the encoding of anything else with a module we lack
-        try:
-            path.read_bytes().decode("utf-8")
-        except UnicodeDecodeError as exc:
-            byte = exc.object[exc.start]
-            raise PrefilterError(
-                f"cannot read mesh {path} as OBJ: not UTF-8 text (byte 0x{byte:02x} at offset {exc.start})"
-            ) from None
     try:
         scene = trimesh.load_scene(str(path))
     except Exception as exc:  # trimesh's loaders raise anything from ValueError to IndexError on bad input
-        raise PrefilterError(f"cannot read mesh {path} as {ext[1:].upper()}: {_one_line(exc)}") from exc
+        raise PrefilterError(
+            f"cannot read mesh {path} as {ext[1:].upper()}: {_why_unreadable(path, exc)}"
+        ) from exc
 
     parts = []
     for node in scene.graph.nodes_geometry:

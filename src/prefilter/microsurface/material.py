@@ -10,7 +10,7 @@ or an environment map's irradiance in 9 SH coefficients (§5.3). microsurface.fr
 Scene TOML (under [object.material], type = "microsurface"):
   macro = "plane" | "sphere"; radius = 1.0 (sphere: must match the mesh)
   [height]           octaves = 4, amplitude = 0.05, frequency = 4, gain = 0.5, lacunarity = 2 (Fractal);
-                     the finest octave's frequency at most 1e8 (MAX_FREQUENCY)
+                     the finest octave's frequency at most 1e8 (noise.MAX_NOISE_SCALE)
   [texture]          the same keys: the procedural driver r of C₀ and of the perturbation (optional)
   perturb = 0.0      ρ in C(h + ρ r)
   kappa = [κ₀, κ₁, κ₂]  default 1 for each map present
@@ -54,6 +54,7 @@ from prefilter.gl.uniforms import bind_samplers, set_uniforms
 from prefilter.microsurface.curved_shadowing import CURVED_DESCENT, CURVED_ELEVATION
 from prefilter.microsurface.fractal_masking import SLOPE_LEAN, SLOPE_LEAN_FADE_DEG, masking_uniform
 from prefilter.microsurface.heightfield import LATTICE_FROM_OBJECT, MAX_OCTAVES, Fractal
+from prefilter.procedural.noise import MAX_NOISE_SCALE
 from prefilter.scene import Reader, register_material
 
 SHADER_DIR = Path(__file__).resolve().parent
@@ -271,9 +272,6 @@ class MicrosurfaceMaterial:
         )
 
 
-MAX_FREQUENCY = 1e8  # of the finest octave, in cycles per object unit
-
-
 def _fractal(r: Reader, defaults: Fractal) -> Fractal:
     fractal = Fractal(
         octaves=r.integer("octaves", defaults.octaves, lo=1, hi=MAX_OCTAVES),
@@ -282,11 +280,9 @@ def _fractal(r: Reader, defaults: Fractal) -> Fractal:
         gain=r.number("gain", defaults.gain, lo=0.0, hi=1.0),
         lacunarity=r.number("lacunarity", defaults.lacunarity, lo=1.0, hi=8.0),
     )
-    # the shaders sum a² f⁴ per octave in float32 (heightfield.glsl): beyond 1e8 that overflows, and the
-    # noise's lattice coordinates have long lost their fraction
     finest = fractal.frequency * fractal.lacunarity ** (fractal.octaves - 1)
-    if finest > MAX_FREQUENCY:
-        raise r.fail("frequency", f"the finest octave's frequency {finest:.3g} exceeds {MAX_FREQUENCY:.0e}")
+    if finest > MAX_NOISE_SCALE:
+        raise r.fail("frequency", f"the finest octave's frequency {finest:.3g} exceeds {MAX_NOISE_SCALE:.0e}")
     r.finish()
     return fractal
 

@@ -20,7 +20,7 @@ Scene TOML (under [object.material], type = "hart"):
   [object.material.fractal]  octaves, first = 1, lacunarity = 2, gain = 0.5, amplitude = 1, scale, offset,
                              velocity: expands to terms amplitude*gain^i n(lacunarity^i scale*s + offset),
                              i = first .. first+octaves-1 (eqs. 6-8); each term's frequency scale and
-                             amplitude at most 1e8 (MAX_SCALE)
+                             amplitude at most 1e8 (noise.MAX_NOISE_SCALE)
   [object.material.colour_table]  wrap = "modulo"|"clamp", size = 256, interpolation = "linear"|"step",
                              stops = [[position, "#rrggbb" or "#rrggbbaa"], ...]
   [object.material.preconvolved]  size = [n_mu, n_sigma], sigma_max, mu_range (the gaussian mode's bake)
@@ -38,7 +38,12 @@ import numpy as np
 from prefilter.colormap.gaussian import parse_preconvolve_options, preconvolve
 from prefilter.colormap.table import ColourTable, TableTextures, parse_colour_table
 from prefilter.gl.uniforms import bind_samplers, set_uniforms
-from prefilter.procedural.noise import footprint_curvature, linear_noise_grad, perlin_noise_grad
+from prefilter.procedural.noise import (
+    MAX_NOISE_SCALE,
+    footprint_curvature,
+    linear_noise_grad,
+    perlin_noise_grad,
+)
 from prefilter.scene import Reader, register_material
 
 MAX_TERMS = 8
@@ -213,9 +218,6 @@ def _matrix_from(r: Reader) -> np.ndarray:
     return np.diag(r.vector("scale", 3, default=[1.0, 1.0, 1.0]))
 
 
-MAX_SCALE = 1e8  # of a fractal octave's amplitude and frequency
-
-
 @register_material("hart")
 def parse_hart(r: Reader, base_dir: Path) -> HartMaterial:
     quadric = quadric_matrix(r.vector("quadric", 10, default=[0.0] * 10))
@@ -245,12 +247,10 @@ def parse_hart(r: Reader, base_dir: Path) -> HartMaterial:
         velocity = fr.vector("velocity", 3, default=[0.0, 0.0, 0.0])
         for i in range(first, first + octaves):
             terms.append(NoiseTerm(amplitude * gain**i, lacunarity**i * base, offset.copy(), velocity.copy()))
-            # the shaders evaluate them in float32: beyond 1e8 the noise's lattice coordinates have lost
-            # their fraction (and the driver's gradient overflows)
-            if not lacunarity**i * np.abs(base).max() <= MAX_SCALE:
-                raise fr.fail("lacunarity", f"octave {i}'s frequency scale exceeds {MAX_SCALE:.0e}")
-            if not abs(amplitude * gain**i) <= MAX_SCALE:
-                raise fr.fail("gain", f"octave {i}'s amplitude exceeds {MAX_SCALE:.0e}")
+            if not lacunarity**i * np.abs(base).max() <= MAX_NOISE_SCALE:
+                raise fr.fail("lacunarity", f"octave {i}'s frequency scale exceeds {MAX_NOISE_SCALE:.0e}")
+            if not abs(amplitude * gain**i) <= MAX_NOISE_SCALE:
+                raise fr.fail("gain", f"octave {i}'s amplitude exceeds {MAX_NOISE_SCALE:.0e}")
         fr.finish()
     if len(terms) > MAX_TERMS:
         raise r.fail("noise", f"at most {MAX_TERMS} noise terms (noise + fractal octaves), got {len(terms)}")

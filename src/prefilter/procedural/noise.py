@@ -26,6 +26,10 @@ from collections.abc import Callable
 
 import numpy as np
 
+# The largest lattice frequency (or amplitude) of a noise term that the shaders can evaluate: float32 lattice
+# coordinates beyond it have lost their fraction, and a⁴f⁴-style sums overflow. Scene parsers refuse more.
+MAX_NOISE_SCALE = 1e8
+
 # Perlin's reference permutation of 0..255 (ImprovedNoise.java, 2002). The Java code doubles it to 512
 # entries to avoid wrapping; here every index is reduced with `& 255` instead.
 # fmt: off
