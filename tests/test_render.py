@@ -157,6 +157,59 @@ def test_an_output_that_cannot_be_written_fails_before_rendering(tmp_path, capsy
     assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]
 
 
+@pytest.mark.parametrize(
+    "argv, expected",
+    [
+        (["render", "zone-plate", "--mode", "reference", "--spp", "5", "-o", "x.png"], "nearest 4 or 9"),
+        (["bench", "zone-plate", "--spp", "1000"], "nearest 961 or 1024"),
+        (["render", "marble-cube", "--quant-bits", "25", "-o", "x.png"], "expected 1..24 bits"),
+        (["view", "--port", "70000"], "expected a TCP port 0..65535"),
+    ],
+)
+def test_arguments_out_of_range_are_refused_by_the_parser(argv, expected, tmp_path, capsys, monkeypatch):
+    """A non-square --spp had been rounded to (round √spp)² without a word, --quant-bits 2000 overflowed in
+    the Hart material's uniforms, and --port 70000 was a traceback from bind()."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exit_:
+        main(argv)
+    assert exit_.value.code == 2
+    assert expected in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("flag", [["--quant-bits", "8"], ["--reduced"], ["--first-order"]])
+def test_hart_options_on_a_scene_without_hart_textures_are_refused(flag, tmp_path, capsys):
+    """They had been ignored: the image was the same with or without them."""
+    assert main(["render", "micro-heights-sphere", *flag, "-o", str(tmp_path / "x.png")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{flag[0]}: micro-heights-sphere has no Hart solid texture" in err[0], err
+    assert not list(tmp_path.iterdir())
+
+
+def test_compare_replaces_an_earlier_comparison_and_nothing_else(tmp_path, capsys):
+    """write_comparison replaces its -o directory whole: it had deleted any directory given to it, the user's
+    files included (and failed with a bare errno message on a file)."""
+    precious = tmp_path / "mine"
+    precious.mkdir()
+    (precious / "notes.txt").write_text("keep me")
+    a_file = tmp_path / "a-file"
+    a_file.write_text("keep me too")
+    for target in (precious, a_file):
+        argv = ["compare", "zone-plate", "--size", "16x16", "--spp", "1", "-o", str(target)]
+        assert main(argv) == 1
+        err = capsys.readouterr().err.strip().splitlines()
+        assert err == [
+            f"prefilter: error: {target}: exists and is not a comparison directory; choose another -o"
+            " directory"
+        ]
+    assert (precious / "notes.txt").read_text() == "keep me" and a_file.read_text() == "keep me too"
+    out = tmp_path / "cmp"
+    for size in ("16x16", "24x24"):  # the second run replaces the first's directory
+        assert main(["compare", "zone-plate", "--size", size, "--spp", "1", "-o", str(out)]) == 0
+    assert json.loads((out / "report.json").read_text())["size"] == [24, 24]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a-file", "cmp", "mine"]
+
+
 def test_compare_command_writes_report(tmp_path):
     out = tmp_path / "cmp"
     assert main(["compare", "zone-plate", "--size", "48x48", "--spp", "16", "-o", str(out)]) == 0

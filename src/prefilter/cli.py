@@ -7,14 +7,24 @@ arguments exit 2, other failures 1. Nothing is written when a command fails.
 from __future__ import annotations
 
 import argparse
+import math
 import re
 import signal
 import sys
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from prefilter import PrefilterError
 from prefilter.scene import SceneError
+
+if TYPE_CHECKING:
+    from prefilter.gl.render import RenderOptions
+
+
+class UsageError(PrefilterError):
+    """Arguments that do not fit the scene: exit 2, as argparse's own."""
+
 
 _SIZE = re.compile(r"^(\d+)x(\d+)$")
 
@@ -45,6 +55,58 @@ def _positive(text: str) -> int:
     return int(text)
 
 
+def _port(text: str) -> int:
+    if not text.isdigit() or int(text) > 65535:
+        raise argparse.ArgumentTypeError(f"expected a TCP port 0..65535 (0: a free one), got {text!r}")
+    return int(text)
+
+
+def _square(text: str) -> int:
+    """Reference samples per pixel: N x N stratified, so a square (√spp had been rounded silently)."""
+    spp = _positive(text)
+    n = math.isqrt(spp)
+    if n * n != spp:
+        raise argparse.ArgumentTypeError(
+            f"expected a square (N x N stratified samples), got {text!r}; nearest {n * n} or {(n + 1) ** 2}"
+        )
+    return spp
+
+
+# Hart §4.3's B bits over the object's extent: float32 solid coordinates hold 24
+MAX_QUANT_BITS = 24
+
+
+def _quant_bits(text: str) -> int:
+    bits = _positive(text)
+    if bits > MAX_QUANT_BITS:
+        raise argparse.ArgumentTypeError(
+            f"expected 1..{MAX_QUANT_BITS} bits (float32 solid coordinates hold that many), got {text!r}"
+        )
+    return bits
+
+
+def _hart_options(args: argparse.Namespace, scene) -> RenderOptions:
+    """The render options of Hart's model; refused when the scene has no Hart solid texture to apply them to
+    (they had been ignored without a word)."""
+    from prefilter.gl.render import RenderOptions
+    from prefilter.procedural.hart import HartMaterial
+
+    given = [
+        flag
+        for flag, on in (
+            ("--quant-bits", args.quant_bits),
+            ("--reduced", args.reduced),
+            ("--first-order", args.first_order),
+        )
+        if on
+    ]
+    if given and not any(isinstance(obj.material, HartMaterial) for obj in scene.objects):
+        raise UsageError(
+            f"{given[0]}: {scene.name} has no Hart solid texture (the option applies to those only)"
+        )
+    return RenderOptions(quant_bits=args.quant_bits, reduced=args.reduced, first_order=args.first_order)
+
+
 def cmd_list(args: argparse.Namespace) -> int:
     from rich.console import Console
     from rich.table import Table
@@ -62,7 +124,7 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 def cmd_render(args: argparse.Namespace) -> int:
     from prefilter.compare import progress_bar
-    from prefilter.gl.render import REFERENCE, Renderer, RenderOptions, composite, scene_modes
+    from prefilter.gl.render import REFERENCE, Renderer, composite, scene_modes
     from prefilter.images import IMAGE_EXTENSIONS, write_image
     from prefilter.scene import resolve_scene
 
@@ -75,7 +137,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     if args.mode not in valid:
         raise PrefilterError(f"--mode {args.mode}: not a mode of {scene.name} (valid: {', '.join(valid)})")
     frames = args.frames or 1
-    options = RenderOptions(quant_bits=args.quant_bits, reduced=args.reduced, first_order=args.first_order)
+    options = _hart_options(args, scene)
     renderer = Renderer(scene, args.size, target=args.target, options=options)
     try:
         images = []
@@ -103,13 +165,19 @@ def cmd_render(args: argparse.Namespace) -> int:
 def cmd_compare(args: argparse.Namespace) -> int:
     from rich.console import Console
 
-    from prefilter.compare import compare_scene, markdown_table, progress_bar, write_comparison
-    from prefilter.gl.render import RenderOptions
+    from prefilter.compare import (
+        check_replaceable,
+        compare_scene,
+        markdown_table,
+        progress_bar,
+        write_comparison,
+    )
     from prefilter.scene import resolve_scene
 
     scene = resolve_scene(args.scene)
     check_writable(Path(args.output))
-    options = RenderOptions(quant_bits=args.quant_bits, reduced=args.reduced, first_order=args.first_order)
+    check_replaceable(Path(args.output))
+    options = _hart_options(args, scene)
     result = compare_scene(
         scene,
         args.size,
@@ -174,14 +242,13 @@ def cmd_bake(args: argparse.Namespace) -> int:
 
 def cmd_export(args: argparse.Namespace) -> int:
     from prefilter.export import export_scene
-    from prefilter.gl.render import RenderOptions
     from prefilter.scene import resolve_scene
 
     scene = resolve_scene(args.scene)
     if args.size:
         scene.size = args.size
     check_writable(Path(args.output))
-    options = RenderOptions(quant_bits=args.quant_bits, reduced=args.reduced, first_order=args.first_order)
+    options = _hart_options(args, scene)
     print(export_scene(scene, Path(args.output), options))
     return 0
 
@@ -209,13 +276,13 @@ def build_parser() -> argparse.ArgumentParser:
         if reference:
             p.add_argument(
                 "--spp",
-                type=_positive,
+                type=_square,
                 default=1024,
                 help="reference samples per pixel, N x N stratified (default 1024 = 32 x 32)",
             )
         p.add_argument(
             "--quant-bits",
-            type=_positive,
+            type=_quant_bits,
             default=None,
             help="quantise solid texture coordinates to B bits over the object (Hart §4.3)",
         )
@@ -254,7 +321,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("names", nargs="*", help="presets to bench (default: all)")
     p.add_argument("--json", default=None, help="also write the results as JSON to this file")
     p.add_argument("--size", type=_size, default=None, help="image size (default: each scene's)")
-    p.add_argument("--spp", type=_positive, default=1024, help="reference samples per pixel (default 1024)")
+    p.add_argument(
+        "--spp", type=_square, default=1024, help="reference samples per pixel, N x N (default 1024)"
+    )
     p.add_argument("--frames", type=_positive, default=7, help="frames per timing median (default 7, min 5)")
     p.add_argument("--quick", action="store_true", help="small sizes and spp: a smoke run, not a measurement")
     p.add_argument("--plots", default="out/bench", help="directory for the error-vs-distance plot")
@@ -283,7 +352,7 @@ def build_parser() -> argparse.ArgumentParser:
         "view", help="serve the WebGL2 viewer on 127.0.0.1 (prints the address; opens nothing)"
     )
     p.add_argument("scene", nargs="?", default=None, help="preset or scene .toml to open first")
-    p.add_argument("--port", type=int, default=0, help="port (default: a free one)")
+    p.add_argument("--port", type=_port, default=0, help="port (default: a free one)")
     p.set_defaults(func=cmd_view)
     return parser
 
@@ -295,7 +364,7 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     try:
         return args.func(args)
-    except SceneError as exc:
+    except (SceneError, UsageError) as exc:
         print(f"prefilter: error: {exc}", file=sys.stderr)
         return 2
     except PrefilterError as exc:

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from prefilter import PrefilterError
 from prefilter.gl.render import REFERENCE, Renderer, RenderOptions, composite, scene_modes
 from prefilter.images import false_colour, labelled_strip, write_image
 from prefilter.metrics import compare
@@ -119,8 +120,25 @@ def markdown_table(comparison: Comparison) -> str:
     return "\n".join(rows)
 
 
+def check_replaceable(out: Path) -> None:
+    """`out` may be written: it does not exist, is an empty directory, or holds an earlier comparison (its
+    report.json), which write_comparison replaces whole. Anything else is refused: it would be deleted."""
+    if not out.exists():
+        return
+    try:
+        report = json.loads((out / "report.json").read_text())
+        is_comparison = {"scene", "reference_spp", "modes"} <= set(report)
+    except (OSError, ValueError, TypeError):
+        is_comparison = False
+    if not is_comparison and (not out.is_dir() or any(out.iterdir())):
+        raise PrefilterError(f"{out}: exists and is not a comparison directory; choose another -o directory")
+
+
 def write_comparison(comparison: Comparison, out_dir: str | os.PathLike) -> Path:
+    """Write the comparison to `out_dir` atomically: staged beside it, then renamed into place (an earlier
+    comparison there is replaced; any other existing file or directory is refused, check_replaceable)."""
     out = Path(out_dir)
+    check_replaceable(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
