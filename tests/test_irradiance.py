@@ -241,26 +241,29 @@ def test_read_environment_rejects_non_equirect(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "content, message",
+    "name, content, message",
     [
-        (b"not an image", "cannot read as EXR"),  # OpenEXR's RuntimeError had escaped as a traceback
-        (None, "twice as wide"),
+        ("env.exr", b"not an image", "cannot read as EXR"),  # OpenEXR's RuntimeError had been a traceback
+        ("env.png", b"not an image", "cannot read as PNG"),  # imageio's message had run over four lines
+        ("env.exr", np.ones((8, 8, 3), np.float32), "twice as wide"),
+        # upload() divided by the irradiance facing up: a black map had been a ZeroDivisionError
+        ("env.exr", np.zeros((8, 16, 3), np.float32), "no light reaches a surface facing up"),
     ],
 )
-def test_a_bad_environment_map_is_named_by_its_scene_key(tmp_path, capsys, content, message):
+def test_a_bad_environment_map_is_named_by_its_scene_key(tmp_path, capsys, name, content, message):
     from prefilter.cli import main
     from prefilter.images import write_image
 
-    env = tmp_path / "env.exr"
-    if content is None:
-        write_image(env, np.ones((8, 8, 3), np.float32))
-    else:
+    env = tmp_path / name
+    if isinstance(content, bytes):
         env.write_bytes(content)
+    else:
+        write_image(env, content)
     scene = tmp_path / "bad.toml"
     scene.write_text(
         'name = "t"\nsize = [16, 12]\n[camera]\neye = [0.0, 1.0, 3.0]\ntarget = [0.0, 0.0, 0.0]\n'
         '[[object]]\nshape = "plane"\n[object.material]\ntype = "microsurface"\n'
-        '[object.material.irradiance]\nenvironment = "env.exr"\n[object.material.height]\noctaves = 2\n'
+        f'[object.material.irradiance]\nenvironment = "{name}"\n[object.material.height]\noctaves = 2\n'
         "[object.material.height_colour]\n[object.material.height_colour.colour_table]\n"
         'stops = [[0.0, "#808080"], [1.0, "#808080"]]\n'
     )

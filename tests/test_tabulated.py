@@ -12,6 +12,7 @@ from prefilter.colormap.tabulated import moment_pyramid, read_driver
 from prefilter.gl.context import gl_context
 from prefilter.gl.evaluate import glsl_eval
 from prefilter.gl.render import Renderer
+from prefilter.image_data import write_exr
 from prefilter.scene import SceneError, load_scene, resolve_scene
 
 
@@ -84,8 +85,19 @@ def test_read_driver_errors(tmp_path):
         read_driver(odd)
     garbage = tmp_path / "bad.png"
     garbage.write_bytes(b"not an image")
+    with pytest.raises(PrefilterError, match="not a PNG file"):
+        read_driver(garbage)
+    garbage = tmp_path / "bad.tif"
+    garbage.write_bytes(b"not an image")
     with pytest.raises(PrefilterError, match="cannot read driver image"):
         read_driver(garbage)
+    # non-finite values had gone into the moment pyramid and rendered as whatever the table clamps them to
+    holes = np.ones((4, 8), np.float32)
+    holes[1, 5] = np.nan
+    holes[2, 0] = np.inf
+    write_exr(tmp_path / "holes.exr", "Y", holes)
+    with pytest.raises(PrefilterError, match=r"2 driver values are not finite \(the first at x 5, y 1\)"):
+        read_driver(tmp_path / "holes.exr")
     ok = tmp_path / "ok.png"
     iio.imwrite(ok, np.full((8, 16), 65535, np.uint16))
     np.testing.assert_array_equal(read_driver(ok), np.ones((8, 16)))

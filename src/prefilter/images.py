@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from prefilter import PrefilterError
+from prefilter.image_data import one_line
 
 IMAGE_EXTENSIONS = (".png", ".exr")
 METADATA_KEY = "prefilter"
@@ -178,7 +179,7 @@ def read_image(path: str | os.PathLike) -> tuple[np.ndarray, dict]:
     except PrefilterError:
         raise
     except Exception as exc:  # imageio and OpenEXR raise many kinds (OSError, RuntimeError, ValueError)
-        raise PrefilterError(f"{path}: cannot read as {ext[1:].upper()} ({exc})") from None
+        raise PrefilterError(f"{path}: cannot read as {ext[1:].upper()} ({one_line(exc)})") from None
 
 
 def _box_weights(n_in: int, n_out: int) -> np.ndarray:

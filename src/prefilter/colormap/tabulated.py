@@ -30,6 +30,7 @@ from prefilter import PrefilterError
 from prefilter.colormap.gaussian import parse_preconvolve_options, preconvolve
 from prefilter.colormap.table import ColourTable, TableTextures, parse_colour_table
 from prefilter.gl.uniforms import bind_samplers, set_uniforms
+from prefilter.image_data import one_line, read_exr, read_png
 from prefilter.scene import Reader, register_material
 
 SHADER_DIR = Path(__file__).resolve().parent
@@ -37,22 +38,21 @@ PACKAGE_ROOT = SHADER_DIR.parent
 
 
 def read_driver(path: Path) -> np.ndarray:
-    """The image's first channel as float64 (H, W); PNG integers are scaled to [0, 1]."""
-    import imageio.v3 as iio
+    """The image's first channel (R of RGB, or its only one) as float64 (H, W): PNG integers scaled to [0, 1]
+    (image_data.read_png, 16-bit too), EXR as stored, other formats that Pillow reads (TIFF, JPEG) alike."""
+    ext = path.suffix.lower()
+    if ext == ".png":
+        data = read_png(path)[0]
+    elif ext == ".exr":
+        data = read_exr(path)[0]
+    else:
+        import imageio.v3 as iio
 
-    try:
-        if path.suffix.lower() == ".exr":
-            import OpenEXR
-
-            with OpenEXR.File(str(path)) as exr:
-                channels = exr.channels()
-                name = next(iter(channels))
-                data = np.asarray(channels[name].pixels, dtype=np.float64)
-        else:
+        try:
             raw = iio.imread(path, plugin="pillow")
-            data = raw.astype(np.float64) / (np.iinfo(raw.dtype).max if raw.dtype.kind in "ui" else 1.0)
-    except Exception as exc:  # imageio/OpenEXR raise many kinds
-        raise PrefilterError(f"{path}: cannot read driver image ({exc})") from None
+        except Exception as exc:  # Pillow/imageio raise many kinds
+            raise PrefilterError(f"{path}: cannot read driver image ({one_line(exc)})") from None
+        data = raw.astype(np.float64) / (np.iinfo(raw.dtype).max if raw.dtype.kind in "ui" else 1.0)
     if data.ndim == 3:
         data = data[..., 0]
     if data.ndim != 2 or data.size == 0:
@@ -60,6 +60,12 @@ def read_driver(path: Path) -> np.ndarray:
     h, w = data.shape
     if w & (w - 1) or h & (h - 1):
         raise PrefilterError(f"{path}: driver image sides must be powers of two, got {w}x{h}")
+    bad = ~np.isfinite(data)
+    if bad.any():  # they had passed into the moment pyramid and the shader's table reads
+        y, x = np.argwhere(bad)[0]
+        raise PrefilterError(
+            f"{path}: {int(bad.sum())} driver values are not finite (the first at x {x}, y {y})"
+        )
     return data
 
 

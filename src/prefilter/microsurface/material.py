@@ -358,12 +358,18 @@ def parse_microsurface(r: Reader, base_dir: Path) -> MicrosurfaceMaterial:
         environment = environment if environment.is_absolute() else base_dir / environment
         if not environment.is_file():
             raise er.fail("environment", f"file not found: {environment}")
-        from prefilter.microsurface.irradiance import read_environment, sh9_project
+        from prefilter.microsurface.irradiance import irradiance_sh, read_environment, sh9_project
 
         try:  # read here, once, so that a bad map is named by its key
             environment_sh = sh9_project(read_environment(environment))
         except PrefilterError as exc:
             raise er.fail("environment", str(exc)) from None
+        # upload() exposes the map by the irradiance of a surface facing up (a black map had divided by 0)
+        if not float(np.mean(irradiance_sh(environment_sh, np.array([0.0, 0.0, 1.0])))) > 0.0:
+            raise er.fail(
+                "environment",
+                f"{environment}: no light reaches a surface facing up (z), which sets its exposure",
+            )
         intensity = er.number("intensity", 1.0, lo=0.0)
         er.finish()
     return MicrosurfaceMaterial(
