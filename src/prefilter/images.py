@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from prefilter import PrefilterError
-from prefilter.image_data import one_line
+from prefilter.image_data import PNG_SIGNATURE, one_line
 
 IMAGE_EXTENSIONS = (".png", ".exr")
 METADATA_KEY = "prefilter"
@@ -127,6 +127,9 @@ def write_image(path: str | os.PathLike, linear_rgb: np.ndarray, metadata: dict 
 def _read_png(path: Path) -> tuple[np.ndarray, dict]:
     import imageio.v3 as iio
 
+    with open(path, "rb") as f:  # else imageio tries every plugin it has on the file, and says so at length
+        if f.read(len(PNG_SIGNATURE)) != PNG_SIGNATURE:
+            raise PrefilterError(f"{path}: not a PNG file")
     a = iio.imread(path)
     if a.dtype == np.uint8:
         enc = a.astype(np.float64) / 255.0
