@@ -51,7 +51,9 @@ def read_driver(path: Path) -> np.ndarray:
         try:
             raw = iio.imread(path, plugin="pillow")
         except Exception as exc:  # Pillow/imageio raise many kinds
-            raise PrefilterError(f"{path}: cannot read driver image ({one_line(exc)})") from None
+            raise PrefilterError(
+                f"{path}: cannot read driver image ({one_line(exc)}); use .png, .exr or a format Pillow reads"
+            ) from None
         data = raw.astype(np.float64) / (np.iinfo(raw.dtype).max if raw.dtype.kind in "ui" else 1.0)
     if data.ndim == 3:
         data = data[..., 0]
@@ -63,9 +65,9 @@ def read_driver(path: Path) -> np.ndarray:
     bad = ~np.isfinite(data)
     if bad.any():  # they had passed into the moment pyramid and the shader's table reads
         y, x = np.argwhere(bad)[0]
-        raise PrefilterError(
-            f"{path}: {int(bad.sum())} driver values are not finite (the first at x {x}, y {y})"
-        )
+        count = int(bad.sum())
+        what = "driver value is" if count == 1 else "driver values are"
+        raise PrefilterError(f"{path}: {count} {what} not finite (the first at x {x}, y {y})")
     return data
 
 
