@@ -128,6 +128,24 @@ def test_render_command_png_exr_and_frames(tmp_path):
     assert np.abs(frames[0] - frames[2]).mean() > 1e-3, "the fire phase should animate"
 
 
+def test_a_frame_sequence_that_fails_to_write_leaves_no_frames(tmp_path, capsys, monkeypatch):
+    """Each frame is written atomically, but a failure at the third (a full disk) had left the first two."""
+    import prefilter.images
+
+    real, calls = prefilter.images.write_image, []
+
+    def failing(path, *args, **kwargs):
+        calls.append(path)
+        if len(calls) == 3:
+            raise OSError(28, "No space left on device")
+        return real(path, *args, **kwargs)
+
+    monkeypatch.setattr(prefilter.images, "write_image", failing)
+    assert main(["render", "fire", "--frames", "4", "--size", "16x16", "-o", str(tmp_path / "f.png")]) == 1
+    assert len(calls) == 3 and not list(tmp_path.iterdir())
+    assert capsys.readouterr().err.strip() == "prefilter: error: [Errno 28] No space left on device"
+
+
 def test_render_rejects_bad_mode_and_extension(tmp_path, capsys):
     assert main(["render", "zone-plate", "--mode", "blurry", "-o", str(tmp_path / "x.png")]) == 1
     assert "--mode blurry" in capsys.readouterr().err

@@ -155,9 +155,17 @@ def cmd_render(args: argparse.Namespace) -> int:
         write_image(out, images[0], meta)
         print(out)
     else:
-        for k, image in enumerate(images):
-            path = out.with_name(f"{out.stem}_{k:04d}{out.suffix}")
-            write_image(path, image, {**meta, "frame": k, "t": k / (frames - 1)})
+        written: list[Path] = []
+        try:
+            for k, image in enumerate(images):
+                path = out.with_name(f"{out.stem}_{k:04d}{out.suffix}")
+                write_image(path, image, {**meta, "frame": k, "t": k / (frames - 1)})
+                written.append(path)
+        except BaseException:  # a failed write (a full disk) leaves no partial sequence behind
+            for path in written:
+                path.unlink(missing_ok=True)
+            raise
+        for path in written:
             print(path)
     return 0
 
