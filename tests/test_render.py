@@ -182,11 +182,17 @@ def test_an_output_that_cannot_be_written_fails_before_rendering(tmp_path, capsy
         (["bench", "zone-plate", "--spp", "1000"], "nearest 961 or 1024"),
         (["render", "marble-cube", "--quant-bits", "25", "-o", "x.png"], "expected 1..24 bits"),
         (["view", "--port", "70000"], "expected a TCP port 0..65535"),
+        # it had been checked after the scene was read and its first object announced
+        (
+            ["bake", "normals-denim-plane", "--scheduler", "thread"],
+            "expected synchronous, threads, processes",
+        ),
     ],
 )
 def test_arguments_out_of_range_are_refused_by_the_parser(argv, expected, tmp_path, capsys, monkeypatch):
     """A non-square --spp had been rounded to (round √spp)² without a word, --quant-bits 2000 overflowed in
-    the Hart material's uniforms, and --port 70000 was a traceback from bind()."""
+    the Hart material's uniforms, --port 70000 was a traceback from bind(), and a misspelt --scheduler was
+    found only once the bake had started."""
     monkeypatch.chdir(tmp_path)
     with pytest.raises(SystemExit) as exit_:
         main(argv)

@@ -61,6 +61,15 @@ def _port(text: str) -> int:
     return int(text)
 
 
+def _scheduler(text: str) -> str:
+    """A local Dask scheduler or a distributed one's address (normals/pyramid.py takes either)."""
+    if text not in ("synchronous", "threads", "processes") and not text.startswith("tcp://"):
+        raise argparse.ArgumentTypeError(
+            f"expected synchronous, threads, processes or tcp://host:port, got {text!r}"
+        )
+    return text
+
+
 def _square(text: str) -> int:
     """Reference samples per pixel: N x N stratified, so a square (√spp had been rounded silently)."""
     spp = _positive(text)
@@ -341,6 +350,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scene", help="a preset name or a scene .toml file with normal-map materials")
     p.add_argument(
         "--scheduler",
+        type=_scheduler,
         default=None,
         help="synchronous, threads, processes (local, 2 workers), or the address of a running Dask "
         "scheduler (tcp://host:8786); default: local processes for maps of 128x128 and more",
