@@ -146,6 +146,21 @@ def test_a_frame_sequence_that_fails_to_write_leaves_no_frames(tmp_path, capsys,
     assert capsys.readouterr().err.strip() == "prefilter: error: [Errno 28] No space left on device"
 
 
+def test_running_out_of_memory_is_one_line(tmp_path, capsys, monkeypatch):
+    """A render too large for the machine (8192 x 8192 peaks at about 11 GiB) had ended in a traceback."""
+    import prefilter.gl.render
+
+    def no_memory(*args, **kwargs):
+        raise MemoryError
+
+    monkeypatch.setattr(prefilter.gl.render.Renderer, "render", no_memory)
+    assert main(["render", "zone-plate", "--size", "16x16", "-o", str(tmp_path / "x.png")]) == 1
+    assert capsys.readouterr().err.strip().splitlines() == [
+        "prefilter: error: out of memory; try a smaller --size (or --spp)"
+    ]
+    assert not list(tmp_path.iterdir())
+
+
 def test_render_rejects_bad_mode_and_extension(tmp_path, capsys):
     assert main(["render", "zone-plate", "--mode", "blurry", "-o", str(tmp_path / "x.png")]) == 1
     assert "--mode blurry" in capsys.readouterr().err

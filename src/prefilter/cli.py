@@ -391,6 +391,9 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:  # what check_writable cannot foresee (a full disk, a directory removed meanwhile)
         print(f"prefilter: error: {exc}", file=sys.stderr)
         return 1
+    except MemoryError:  # an 8192 x 8192 render peaks at about 11 GiB
+        print("prefilter: error: out of memory; try a smaller --size (or --spp)", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("prefilter: interrupted", file=sys.stderr)
         return 130
