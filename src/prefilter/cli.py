@@ -11,11 +11,11 @@ import math
 import re
 import signal
 import sys
-import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from prefilter import PrefilterError
+from prefilter.outputs import check_writable
 from prefilter.scene import SceneError
 
 if TYPE_CHECKING:
@@ -27,19 +27,6 @@ class UsageError(PrefilterError):
 
 
 _SIZE = re.compile(r"^(\d+)x(\d+)$")
-
-
-def check_writable(path: Path) -> None:
-    """Fail before any rendering when `path` cannot be written: a file is created and removed at once in the
-    nearest directory of its that exists (the writers make the missing ones)."""
-    ancestor = path.absolute().parent
-    while not ancestor.exists():
-        ancestor = ancestor.parent
-    try:
-        with tempfile.TemporaryFile(dir=ancestor):
-            pass
-    except OSError as exc:
-        raise PrefilterError(f"{path}: cannot write in {ancestor} ({exc.strerror or exc})") from None
 
 
 def _size(text: str) -> tuple[int, int]:

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from prefilter import PrefilterError
+from prefilter import outputs
 from prefilter.gl.render import REFERENCE, Renderer, RenderOptions, composite, scene_modes
 from prefilter.images import false_colour, labelled_strip, write_image
 from prefilter.metrics import compare
@@ -121,17 +121,13 @@ def markdown_table(comparison: Comparison) -> str:
 
 
 def check_replaceable(out: Path) -> None:
-    """`out` may be written: it does not exist, is an empty directory, or holds an earlier comparison (its
-    report.json), which write_comparison replaces whole. Anything else is refused: it would be deleted."""
-    if not out.exists():
-        return
-    try:
-        report = json.loads((out / "report.json").read_text())
-        is_comparison = {"scene", "reference_spp", "modes"} <= set(report)
-    except (OSError, ValueError, TypeError):
-        is_comparison = False
-    if not is_comparison and (not out.is_dir() or any(out.iterdir())):
-        raise PrefilterError(f"{out}: exists and is not a comparison directory; choose another -o directory")
+    """`out` may be replaced by a comparison: absent, empty, or an earlier comparison (its report.json)."""
+    outputs.check_replaceable(
+        out,
+        "report.json",
+        lambda report: {"scene", "reference_spp", "modes"} <= set(report),
+        "a comparison directory",
+    )
 
 
 def write_comparison(comparison: Comparison, out_dir: str | os.PathLike) -> Path:

@@ -42,6 +42,7 @@ from prefilter.gl.render import (
     scene_modes,
 )
 from prefilter.gl.uniforms import BindingRecorder
+from prefilter.outputs import check_replaceable
 from prefilter.scene import Scene, SceneObject
 
 FORMAT = "prefilter-export/1"
@@ -411,14 +412,9 @@ def export_scene(scene: Scene, out: Path, options: RenderOptions | None = None) 
     An existing `out` is replaced only if it is an export bundle (has a scene.json of this format).
     """
     out = Path(out)
-    if out.exists():
-        marker = out / "scene.json"
-        try:
-            is_bundle = json.loads(marker.read_text()).get("format") == FORMAT
-        except (OSError, ValueError, AttributeError):
-            is_bundle = False
-        if not is_bundle and (not out.is_dir() or any(out.iterdir())):
-            raise PrefilterError(f"{out}: exists and is not an export bundle; choose another -o directory")
+    check_replaceable(
+        out, "scene.json", lambda manifest: manifest.get("format") == FORMAT, "an export bundle"
+    )
     captured = capture_scene(scene, options)
     data = manifest(scene, captured)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -98,7 +98,8 @@ class MicrosurfaceMaterial:
     transfer_scale: float = 1.0  # h = transfer_scale · g(f)
     environment: Path | None = None
     environment_intensity: float = 1.0  # radiance of a white Lambertian facing up
-    # the environment's SH9 projection (9, 3), made once where the scene is read
+    # the environment's SH9 projection (9, 3), made once where the scene is read and exposed there so that a
+    # white Lambertian facing up reflects radiance 1 (E_up = π); upload() scales it by the intensity
     environment_sh: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     kind = "microsurface"
@@ -226,12 +227,9 @@ class MicrosurfaceMaterial:
                 self.transfer_scale * self.transfer.slope_gain(np.sqrt(self.height.variance())),
             )
         if self.environment is not None:
-            from prefilter.microsurface.irradiance import irradiance_sh, sh_uniform
+            from prefilter.microsurface.irradiance import sh_uniform
 
-            coeffs = self.environment_sh
-            # exposure: a white Lambertian facing up reflects radiance `intensity` (E_up = π · intensity)
-            up = float(np.mean(irradiance_sh(coeffs, np.array([0.0, 0.0, 1.0]))))
-            uniforms["u_sh"] = sh_uniform(coeffs * (np.pi * self.environment_intensity / up))
+            uniforms["u_sh"] = sh_uniform(self.environment_sh * self.environment_intensity)
         return {"textures": textures, "uniforms": uniforms, "owned": owned}
 
     def release(self, resources: dict) -> None:
@@ -364,12 +362,14 @@ def parse_microsurface(r: Reader, base_dir: Path) -> MicrosurfaceMaterial:
             environment_sh = sh9_project(read_environment(environment))
         except PrefilterError as exc:
             raise er.fail("environment", str(exc)) from None
-        # upload() exposes the map by the irradiance of a surface facing up (a black map had divided by 0)
-        if not float(np.mean(irradiance_sh(environment_sh, np.array([0.0, 0.0, 1.0])))) > 0.0:
+        # exposure: a white Lambertian facing up reflects radiance 1 (E_up = π); a black map has none to scale
+        up = float(np.mean(irradiance_sh(environment_sh, np.array([0.0, 0.0, 1.0]))))
+        if not up > 0.0:
             raise er.fail(
                 "environment",
                 f"{environment}: no light reaches a surface facing up (z), which sets its exposure",
             )
+        environment_sh = environment_sh * (np.pi / up)
         intensity = er.number("intensity", 1.0, lo=0.0)
         er.finish()
     return MicrosurfaceMaterial(
