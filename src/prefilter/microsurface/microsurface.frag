@@ -784,7 +784,7 @@ vec3 ms_shade(vec3 o, vec3 d, float t, vec3 p0, vec3 dpdxMacro, vec3 dpdyMacro, 
     vec3 placementNormal = normalize(frame * vec3(-placementSlope, 1.0));
     MsSplit marched = ms_saveSplit();
     vec3 boxX = sub.x * gridX, boxY = sub.y * gridY;  // a sample's footprint
-    ms_setWeightsAbove(boxX, boxY, false, MS_SAMPLE_WEIGHT_FLOOR, MS_SAMPLE_VARIANCE_FLOOR);
+    ms_setWeightsAbove(boxX, boxY, false, MS_SAMPLE_WEIGHT_FLOOR, MS_SAMPLE_VARIANCE_FLOOR, 1.0);
 #else
     float qHeight = ms_surfaceHeight(p);
     vec3 boxX = dpdx, boxY = dpdy;
