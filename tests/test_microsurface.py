@@ -55,6 +55,11 @@ def _eval_on_the_plane(body: str, target: str, n: int = 400, defines=None) -> tu
     return p, got
 
 
+def _footprint_args(dpdx, dpdy) -> str:
+    """The GLSL arguments `vec3(dpdx), vec3(dpdy)` of a footprint."""
+    return ", ".join(f"vec3({', '.join(map(str, v))})" for v in (dpdx, dpdy))
+
+
 def test_noise_statistics_constants_match_fresh_monte_carlo():
     rng = _rng(1)
     # plane sections through the tilted lattice, as the height field samples them
@@ -139,9 +144,8 @@ def test_glsl_linear_part_matches_numpy(target):
     from prefilter.procedural.noise_stats import split_fit, split_fits
 
     dpdx, dpdy = np.array([0.09, 0.0, 0.03]), np.array([0.0, 0.0, 0.05])  # 0.2-2.1 cells of the octaves
-    x, y = ", ".join(map(str, dpdx)), ", ".join(map(str, dpdy))
     p, got = _eval_on_the_plane(
-        f"ms_setWeightsAbove(vec3({x}), vec3({y}), false, 0.0, 0.0, 1.0);"
+        f"ms_setWeightsAbove({_footprint_args(dpdx, dpdy)}, false, 0.0, 0.0, 1.0);"
         " vec3 linear, shading; ms_fractalGradLinear(p, 0, ms_heightOctaves, linear, shading);"
         " return vec4(linear, ms_heightResidual);",
         target,
@@ -169,10 +173,9 @@ def test_a_sample_split_leaves_small_octaves_under_its_weight_floor_wholly_to_th
     and drops one. The octave kept by its variance keeps its height, but its slopes shade through the
     statistics (ms_shadingSlopeVariance)."""
     dpdx, dpdy = np.array([0.18, 0.0, 0.06]), np.array([0.0, 0.0, 0.1])  # 0.4-4.2 cells of the octaves
-    x, y = ", ".join(map(str, dpdx)), ", ".join(map(str, dpdy))
     floor, share = 0.5, 0.01
     p, got = _eval_on_the_plane(
-        f"ms_setWeightsAbove(vec3({x}), vec3({y}), false, {floor}, {share}, 1.0);"
+        f"ms_setWeightsAbove({_footprint_args(dpdx, dpdy)}, false, {floor}, {share}, 1.0);"
         " vec3 linear, shading;"
         " vec4 fg = ms_fractalGradLinear(p, 0, ms_weightedHeightOctaves, linear, shading);"
         " return vec4(fg.w, ms_heightVariance, ms_shadingSlopeVariance, float(ms_weightedHeightOctaves));",
@@ -217,9 +220,8 @@ def test_the_marched_surface_fades_its_octaves_under_the_floor_into_the_statisti
     the relief) and its loops stop at the last octave kept. Against the NumPy twins of the fractal and of
     the split's fits, with a footprint that keeps two octaves, fades one and drops one."""
     dpdx, dpdy = np.array([0.36, 0.0, 0.12]), np.array([0.0, 0.0, 0.2])  # 0.8-8.4 cells of the octaves
-    x, y = ", ".join(map(str, dpdx)), ", ".join(map(str, dpdy))
     p, got = _eval_on_the_plane(
-        f"ms_setWeights(vec3({x}), vec3({y}), false);"
+        f"ms_setWeights({_footprint_args(dpdx, dpdy)}, false);"
         " return vec4(ms_surfaceHeight(p), ms_heightVariance, float(ms_weightedHeightOctaves),"
         " ms_altitude(p - vec3(0.0, 1.0, 0.0)) - ms_gapBound(p - vec3(0.0, 1.0, 0.0)));",
         "gl330",
@@ -244,9 +246,8 @@ def test_the_marched_surface_has_no_step_where_an_octave_falls_under_the_floor()
         heights = []
         for scale in scales:
             dpdx, dpdy = scale * np.array([0.18, 0.0, 0.06]), scale * np.array([0.0, 0.0, 0.1])
-            x, y = ", ".join(map(str, dpdx)), ", ".join(map(str, dpdy))
             _, got = _eval_on_the_plane(
-                f"ms_setWeights(vec3({x}), vec3({y}), false); return vec4(ms_surfaceHeight(p));",
+                f"ms_setWeights({_footprint_args(dpdx, dpdy)}, false); return vec4(ms_surfaceHeight(p));",
                 "gl330",
                 n=100,
                 defines={**MARCH_FLOORS, "MS_MARCH_FLOOR_FADE": fade},
@@ -269,9 +270,8 @@ def test_shading_slopes_keep_the_centre_correlation_where_the_relief_gate_keeps_
     from prefilter.procedural.noise_stats import split_fit, split_fits
 
     dpdx, dpdy = np.array([0.09, 0.0, 0.03]), np.array([0.0, 0.0, 0.05])  # 0.2-2.1 cells of the octaves
-    x, y = ", ".join(map(str, dpdx)), ", ".join(map(str, dpdy))
     setup = (
-        f"ms_reliefGate = 1.0; ms_setWeights(vec3({x}), vec3({y}), false);"
+        f"ms_reliefGate = 1.0; ms_setWeights({_footprint_args(dpdx, dpdy)}, false);"
         " vec3 linear, shading; vec4 fg = ms_fractalGradLinear(p, 0, ms_heightOctaves, linear, shading);"
     )
     defines = {"MS_SLOPE_WEIGHT_GATE": lift}
