@@ -156,15 +156,23 @@ void ms_setWeightsAbove(vec3 dpdx, vec3 dpdy, bool full, float floorWeight, floa
     ms_weightedHeightOctaves = 0;
     ms_weightedTextureOctaves = 0;
     float heightFirst = ms_octave[0].x, textureFirst = ms_octave[MS_MAX_OCTAVES].x;  // a₀ of each fractal
+    // The slots of octaves that a fractal does not have are cleared first, and the loop visits only the
+    // fractals' own: it had run over every slot, skipping the empty ones with `continue`, which llvmpipe
+    // runs masked at the cost of a whole octave (its split's fits and the bookkeeping below). Measured
+    // (256 px, 7 round-robin rounds, time ÷ naive before -> after, the same images bit for bit):
+    // micro-snake-sphere (7 of 16 slots its own) 1.48 -> 1.40, micro-heights-sphere (5 of 8) 1.69 -> 1.61,
+    // micro-slopes-sphere 1.12 -> 1.05, micro-irradiance-terrain 1.39 -> 1.38; naive's frames the same
+    // (what it does not read of the split is not computed).
     for (int i = 0; i < MS_WEIGHT_SLOTS; ++i) {
-        bool height = i < MS_MAX_OCTAVES;
-        int k = height ? i : i - MS_MAX_OCTAVES;
+        ms_weight[i] = 0.0;
         ms_linearWeight[i] = 0.0;
         ms_slopeWeight[i] = 0.0;
-        if (k >= (height ? ms_heightOctaves : ms_textureOctaves)) {
-            ms_weight[i] = 0.0;
-            continue;
-        }
+    }
+    int i = 0;  // the slot: height octaves from 0, the texture's from MS_MAX_OCTAVES
+    for (int n = 0; n < MS_WEIGHT_SLOTS; ++n) {
+        bool height = i < MS_MAX_OCTAVES;
+        int k = height ? i : i - MS_MAX_OCTAVES;
+        bool last = k + 1 >= (height ? ms_heightOctaves : ms_textureOctaves);
         vec2 af = ms_octave[i];
         vec3 fractions = ms_splitFractions(af.y * lx, af.y * ly);  // (β, β₁, γ), one evaluation
         float w = full ? 1.0 : ms_meanFraction(fractions);
@@ -206,6 +214,8 @@ void ms_setWeightsAbove(vec3 dpdx, vec3 dpdy, bool full, float floorWeight, floa
         } else {
             ms_textureVariance += residual * MS_NOISE_VARIANCE;
         }
+        if (last && (!height || MS_WEIGHT_SLOTS == MS_MAX_OCTAVES)) break;  // at the end of the body
+        i = last ? MS_MAX_OCTAVES : i + 1;  // after the height octaves, the texture's
     }
     ms_coarseFrequency = sqrt(curvatureMoment / max(ms_coarseSlopeVariance, 1e-30));
 #ifdef MS_TRANSFER
