@@ -284,7 +284,9 @@ void ms_restoreSplit(MsSplit split) {
 #endif
 }
 
-// Σ_k w_k a_k n(f_k R p + o_k) over octaves [first, first + count).
+// Σ_k w_k a_k n(f_k R p + o_k) over octaves [first, first + count). The loops over octaves break at the end
+// of their body, so a count of 0 (a split that keeps none: ms_weighted*Octaves) visits the first, whose
+// weight is 0, and adds nothing.
 float ms_fractal(vec3 p, int first, int count) {
     vec3 lp = ms_latticeFromObject * p;
     float value = 0.0;
@@ -348,7 +350,7 @@ vec2 ms_coarseSlope(vec3 p, mat3 frame, vec3 dpdx, vec3 dpdy, out float height, 
         vec4 octave = ms_octaveGrad(lp, k);
         fg += ms_meanFraction(ms_splitFractions(f * lx, f * ly)) * octave;
         height += ms_weight[k] * octave.w;
-        if (k + 1 >= max(ms_weightedHeightOctaves, 1)) break;  // at the end of the body (MS_MAX_OCTAVES)
+        if (k + 1 >= ms_weightedHeightOctaves) break;  // at the end of the body (MS_MAX_OCTAVES)
     }
     driver = vec3(height, dot(fg.xyz, frame[0]), dot(fg.xyz, frame[1]));
 #ifdef MS_TRANSFER
@@ -445,7 +447,7 @@ float ms_surfaceHeight(vec3 p) {
     return ms_transfer(f, ms_transferSigma).x;
 }
 #else
-float ms_surfaceHeight(vec3 p) { return ms_fractal(p, 0, max(ms_weightedHeightOctaves, 1)); }
+float ms_surfaceHeight(vec3 p) { return ms_fractal(p, 0, ms_weightedHeightOctaves); }
 #endif
 
 // Altitude of q above the displaced surface (> 0 outside).
@@ -850,7 +852,7 @@ vec4 ms_shadowProfile(vec3 q, vec3 l, int maxSteps, float reach, float skip) {
         if (t >= slab.y) break;
     }
     if (least >= reach) return none;
-    vec4 fg = ms_fractalGrad(ms_project(at), 0, max(ms_weightedHeightOctaves, 1));
+    vec4 fg = ms_fractalGrad(ms_project(at), 0, ms_weightedHeightOctaves);
 #ifdef MS_TRANSFER
     fg.xyz *= ms_transfer(fg.w, ms_transferSigma).z;  // ∇E[g(f)] = E[g'] ∇f
 #endif

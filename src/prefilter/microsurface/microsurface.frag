@@ -279,7 +279,7 @@ MsSurface ms_unresolvedAbout(vec3 driver) {
 MsSurface ms_surfaceAt(vec3 p, mat3 frame) {
     MsSurface s;
     vec3 shading;
-    vec4 fg = ms_fractalGradLinear(p, 0, max(ms_weightedHeightOctaves, 1), s.linear, shading);
+    vec4 fg = ms_fractalGradLinear(p, 0, ms_weightedHeightOctaves, s.linear, shading);
 #if defined(MODE_SURFACE_FILTER) && !defined(MS_TRANSFER)
     vec3 grad = shading;
     float slopeVariance = ms_shadingSlopeVariance;
@@ -298,7 +298,7 @@ MsSurface ms_surfaceAt(vec3 p, mat3 frame) {
     s = ms_unresolvedAbout(vec3(fg.w, s.slope));  // about this point's driver and its gradient (grad above)
 #endif
 #ifdef MS_TEXTURE_FRACTAL
-    s.r = ms_fractal(p, MS_MAX_OCTAVES, max(ms_weightedTextureOctaves, 1));
+    s.r = ms_fractal(p, MS_MAX_OCTAVES, ms_weightedTextureOctaves);
 #else
     s.r = 0.0;
 #endif
@@ -1125,11 +1125,7 @@ void main() {
     // micro-slopes-sphere 1.14 -> 1.11 x naive's frame (7 round-robin rounds), with the same images to 6e-5.
     float t = ms_march(o, d, slab, MS_MAX_STEPS, true);
     if (t < 0.0) discard;
-#ifdef MODE_SURFACE_FILTER
     vec3 radiance = ms_shade(o, d, t, p0, dpdxMacro, dpdyMacro, dpdx, dpdy, MS_RELIEF_CLOSING * ms_reliefGate);
-#else
-    vec3 radiance = ms_shade(o, d, t, p0, dpdxMacro, dpdyMacro, dpdx, dpdy, ms_reliefGate);
-#endif
 #endif
 #ifdef MODE_MARCH_STEPS
     radiance = vec3(float(ms_steps) / 256.0, 0.0, 0.0);  // steps of the primary and shadow rays, /256
